@@ -1,0 +1,1 @@
+//! AIM acoustic world simulator (work in progress).

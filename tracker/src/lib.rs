@@ -1,0 +1,1 @@
+//! AIM host tracker (work in progress).
