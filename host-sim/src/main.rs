@@ -1,12 +1,38 @@
 //! `host-sim`: the acoustic world simulator's command line.
-use clap::Parser;
+use clap::{Parser, Subcommand};
 
-/// AIM acoustic world simulator.
+mod cmd;
+
+/// AIM acoustic world simulator: simulate flights, run the on-chip DSP on audio, evaluate tracks.
 #[derive(Parser)]
-#[command(version, about)]
-struct Cli {}
+#[command(version, about, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
 
-fn main() -> anyhow::Result<()> {
-    let _cli = Cli::parse();
-    Ok(())
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate a scenario: write one WAV per array, the truth and the site file.
+    Simulate(cmd::simulate::Args),
+    /// Run the on-chip pipeline on a recording and print its outputs as JSON lines.
+    Analyze(cmd::analyze::Args),
+    /// Simulate, run the pipeline and the tracker, and report the error against the truth.
+    Fly(cmd::fly::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let result = match Cli::parse().command {
+        Command::Simulate(args) => cmd::simulate::run(args),
+        Command::Analyze(args) => cmd::analyze::run(args),
+        Command::Fly(args) => cmd::fly::run(args),
+    };
+    // Errors are for people: the message and its causes, one line, no backtrace.
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
 }

@@ -1,12 +1,41 @@
 //! `aim`: the host tracker's command line.
-use clap::Parser;
+use clap::{Parser, Subcommand};
 
-/// AIM host tracker.
+mod cmd;
+
+/// AIM host tracker: reads array frames and prints drone positions.
 #[derive(Parser)]
-#[command(version, about)]
-struct Cli {}
+#[command(version, about, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
 
-fn main() -> anyhow::Result<()> {
-    let _cli = Cli::parse();
-    Ok(())
+#[derive(Subcommand)]
+enum Command {
+    /// Store the raw byte stream of a serial port in a file.
+    Record(cmd::record::Args),
+    /// Decode frames from a recording (or `-` for stdin) and print them as JSON lines.
+    Frames(cmd::frames::Args),
+    /// Track from a recording of frames and print one JSON fix per line.
+    Replay(cmd::replay::Args),
+    /// Track live from a serial port and print one JSON fix per line.
+    Track(cmd::track::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let result = match Cli::parse().command {
+        Command::Record(args) => cmd::record::run(args),
+        Command::Frames(args) => cmd::frames::run(args),
+        Command::Replay(args) => cmd::replay::run(args),
+        Command::Track(args) => cmd::track::run(args),
+    };
+    // Errors are for people: the message and its causes, one line, no backtrace.
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
 }

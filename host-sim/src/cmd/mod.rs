@@ -1,0 +1,4 @@
+//! One module per `host-sim` subcommand: its arguments and its `run`.
+pub mod analyze;
+pub mod fly;
+pub mod simulate;
