@@ -1,1 +1,88 @@
-fn main() {}
+//! Project automation, run as `cargo xtask <command>` (the alias lives in `.cargo/config.toml`).
+//!
+//! - `cargo xtask budget`: builds the firmware for the board, measures flash and static RAM
+//!   from its ELF, and checks every budget in `budget.toml`, one line each:
+//!   `budget: <name> <measured> <limit> <unit> ok|OVER`. Exits non-zero on any OVER.
+//! - `cargo xtask ci`: everything `.ci/run` checks once the tools are installed.
+use std::{
+    path::{Path, PathBuf},
+    process::{Command, ExitCode},
+};
+
+use anyhow::{bail, Context, Result};
+
+mod budget;
+mod elf_size;
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("budget") => budget::run(&workspace_root()),
+        Some("ci") => ci(&workspace_root()),
+        Some("help" | "--help" | "-h") | None => {
+            print!("{USAGE}");
+            Ok(())
+        }
+        Some(other) => Err(anyhow::anyhow!("unknown command `{other}`\n\n{USAGE}")),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+const USAGE: &str = "\
+usage: cargo xtask <command>
+
+commands:
+  budget   build the firmware and check flash, RAM and instruction budgets (budget.toml)
+  ci       run every check of .ci/run (tests, fmt, clippy, firmware build, budgets)
+";
+
+/// The workspace root: the parent of this crate's folder.
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask lives in the workspace").into()
+}
+
+/// Runs `cargo` with `args` in `dir`, echoing the command; fails if it fails.
+pub(crate) fn cargo(dir: &Path, args: &[&str]) -> Result<()> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    eprintln!("$ cargo {}", args.join(" "));
+    let status = Command::new(&cargo)
+        .args(args)
+        .current_dir(dir)
+        .status()
+        .with_context(|| format!("running cargo {}", args.join(" ")))?;
+    if !status.success() {
+        bail!("`cargo {}` failed ({status})", args.join(" "));
+    }
+    Ok(())
+}
+
+/// The checks of `.ci/run`, in order, stopping at the first failure.
+fn ci(root: &Path) -> Result<()> {
+    // The README's test command.
+    cargo(root, &["test"])?;
+    cargo(root, &["fmt", "--all", "--check"])?;
+    cargo(root, &["clippy", "--all-targets", "--", "-D", "warnings"])?;
+    cargo(
+        root,
+        &[
+            "clippy",
+            "-p",
+            "aim-firmware",
+            "--target",
+            "thumbv7em-none-eabihf",
+            "--release",
+            "--",
+            "-D",
+            "warnings",
+        ],
+    )?;
+    let elf = budget::build_firmware(root, &budget::Budget::load(root)?.firmware)?;
+    eprintln!("firmware ELF (STM32H743ZI, thumbv7em-none-eabihf): {}", elf.display());
+    budget::run(root)
+}
