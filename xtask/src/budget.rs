@@ -196,7 +196,7 @@ mod tests {
         let over = Line { name: "ram".into(), measured: 11, limit: 10, unit: "bytes".into() };
         assert_eq!(ok.to_string(), "budget: flash 10 10 bytes ok");
         assert_eq!(over.to_string(), "budget: ram 11 10 bytes OVER");
-        assert!(report(&[ok.clone()]).is_ok());
+        assert!(report(std::slice::from_ref(&ok)).is_ok());
         assert!(report(&[ok, over]).is_err());
     }
 }
