@@ -139,6 +139,7 @@ fn target_dir(root: &Path) -> Result<PathBuf> {
 pub fn run(root: &Path) -> Result<()> {
     let budget = Budget::load(root)?;
     let elf = build_firmware(root, &budget.firmware)?;
+    eprintln!("firmware ELF ({}): {}", budget.firmware.target, elf.display());
     let data = std::fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
     let size = elf_size::measure(&data, &budget.regions)
         .with_context(|| format!("measuring {}", elf.display()))?;
