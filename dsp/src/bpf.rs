@@ -1,0 +1,345 @@
+//! Blade-passing-frequency tracking: decimated mono signal, long spectrum, harmonic peak groups.
+//!
+//! The mean of all microphones is low-pass filtered and decimated to [`DECIMATED_RATE_HZ`]
+//! (windowed-sinc FIR, Blackman window, polyphase: one output per `factor` inputs). Every
+//! [`ANALYSIS_HOP`] decimated samples the last [`ANALYSIS_LEN`] (0.512 s, Hann window) are
+//! transformed (microfft `rfft_4096`, 1.95 Hz bins). Fundamental candidates are spectral peaks
+//! in the BPF search range standing `peak_floor_ratio` above the mean level of the band; each
+//! collects its harmonics (the strongest bin within ±1 of h·f, if it is a local maximum), every
+//! peak refined below one bin by the Hann-window ratio estimator (Grandke):
+//! δ = (2α − 1)/(α + 1), α = |X(k±1)| / |X(k)|, exact for a lone tone. The group's frequency is
+//! the amplitude-weighted mean of f_h / h. Groups are ranked by the sum of their harmonic
+//! amplitudes; a group at an integer multiple or sub-multiple of a stronger one is a harmonic of
+//! it and is dropped.
+
+use crate::{Config, Peak, Peaks, MAX_HARMONICS};
+
+/// Sample rate of the decimated mono signal, Hz.
+pub const DECIMATED_RATE_HZ: u32 = 8_000;
+/// Length of the BPF analysis window, decimated samples (0.512 s).
+pub const ANALYSIS_LEN: usize = 4096;
+/// Decimated samples between two analyses (50 % overlap, 0.256 s: 3.9 `Peaks` per second).
+pub const ANALYSIS_HOP: usize = 2048;
+/// Most FIR taps of the decimator.
+pub const MAX_TAPS: usize = 96;
+/// FIR taps per unit of decimation factor.
+const TAPS_PER_FACTOR: usize = 16;
+/// Decimator cut-off, Hz (Blackman: −74 dB from about 4.9 kHz at 48 kHz).
+const CUTOFF_HZ: f32 = 3500.0;
+/// Highest harmonic frequency analysed, Hz (the anti-alias filter rolls off above it).
+pub const MAX_ANALYSIS_HZ: f32 = 3800.0;
+/// Lowest frequency in the band level estimate, Hz.
+const FLOOR_LOW_HZ: f32 = 100.0;
+/// Most fundamental candidates examined per analysis.
+const MAX_CANDIDATES: usize = 16;
+
+/// Polyphase FIR decimator.
+#[derive(Debug, Clone)]
+pub struct Decimator {
+    taps: [f32; MAX_TAPS],
+    len: usize,
+    factor: usize,
+    /// Delay line written twice (at i and i + len) so the dot product never wraps.
+    line: [f32; 2 * MAX_TAPS],
+    pos: usize,
+    phase: usize,
+}
+
+impl Decimator {
+    /// An inert decimator; [`Decimator::configure`] designs the filter.
+    pub const fn empty() -> Self {
+        Self {
+            taps: [0.0; MAX_TAPS],
+            len: 1,
+            factor: 1,
+            line: [0.0; 2 * MAX_TAPS],
+            pos: 0,
+            phase: 0,
+        }
+    }
+
+    /// Designs the low-pass for `input_rate_hz` → [`DECIMATED_RATE_HZ`] and clears the state.
+    pub fn configure(&mut self, input_rate_hz: u32) {
+        let factor = (input_rate_hz / DECIMATED_RATE_HZ).max(1) as usize;
+        let len = (TAPS_PER_FACTOR * factor).min(MAX_TAPS);
+        let fc = CUTOFF_HZ / input_rate_hz as f32;
+        let mid = (len - 1) as f32 / 2.0;
+        let mut sum = 0.0f32;
+        for (n, t) in self.taps[..len].iter_mut().enumerate() {
+            let x = n as f32 - mid;
+            let sinc = if x == 0.0 {
+                2.0 * fc
+            } else {
+                libm::sinf(2.0 * core::f32::consts::PI * fc * x) / (core::f32::consts::PI * x)
+            };
+            let a = 2.0 * core::f32::consts::PI * n as f32 / (len - 1) as f32;
+            let blackman = 0.42 - 0.5 * libm::cosf(a) + 0.08 * libm::cosf(2.0 * a);
+            *t = sinc * blackman;
+            sum += *t;
+        }
+        for t in &mut self.taps[..len] {
+            *t /= sum;
+        }
+        self.len = len;
+        self.factor = factor;
+        self.line = [0.0; 2 * MAX_TAPS];
+        self.pos = 0;
+        self.phase = 0;
+    }
+
+    /// Decimation factor.
+    pub fn factor(&self) -> usize {
+        self.factor
+    }
+
+    /// Group delay of the filter, input samples.
+    pub fn delay_samples(&self) -> usize {
+        (self.len - 1) / 2
+    }
+
+    /// Feeds one input sample; returns an output sample every `factor` inputs.
+    #[inline]
+    pub fn push(&mut self, x: f32) -> Option<f32> {
+        self.line[self.pos] = x;
+        self.line[self.pos + self.len] = x;
+        self.pos += 1;
+        if self.pos == self.len {
+            self.pos = 0;
+        }
+        self.phase += 1;
+        if self.phase < self.factor {
+            return None;
+        }
+        self.phase = 0;
+        // line[pos .. pos + len] holds the last `len` inputs, oldest first; taps are symmetric.
+        let window = &self.line[self.pos..self.pos + self.len];
+        Some(window.iter().zip(&self.taps[..self.len]).map(|(a, b)| a * b).sum())
+    }
+}
+
+/// The spectral path's streaming state: decimator and the ring of decimated samples.
+#[derive(Debug, Clone)]
+pub struct SpectralPath {
+    decimator: Decimator,
+    ring: [f32; ANALYSIS_LEN],
+    write: usize,
+    /// Decimated samples produced since configuration.
+    produced: u64,
+    since_analysis: usize,
+}
+
+impl SpectralPath {
+    /// An inert path; [`SpectralPath::configure`] prepares it.
+    pub const fn empty() -> Self {
+        Self {
+            decimator: Decimator::empty(),
+            ring: [0.0; ANALYSIS_LEN],
+            write: 0,
+            produced: 0,
+            since_analysis: 0,
+        }
+    }
+
+    /// Designs the decimator for `input_rate_hz` and clears the state.
+    pub fn configure(&mut self, input_rate_hz: u32) {
+        self.decimator.configure(input_rate_hz);
+        self.ring = [0.0; ANALYSIS_LEN];
+        self.write = 0;
+        self.produced = 0;
+        self.since_analysis = 0;
+    }
+
+    /// Feeds one mono sample (fraction of full scale). Returns true when an analysis is due.
+    #[inline]
+    pub fn push(&mut self, x: f32) -> bool {
+        let Some(y) = self.decimator.push(x) else { return false };
+        self.ring[self.write] = y;
+        self.write = (self.write + 1) % ANALYSIS_LEN;
+        self.produced += 1;
+        self.since_analysis += 1;
+        if self.since_analysis >= ANALYSIS_HOP && self.produced >= ANALYSIS_LEN as u64 {
+            self.since_analysis = 0;
+            return true;
+        }
+        false
+    }
+
+    /// Input-rate sample index where the current analysis window starts (filter delay removed).
+    pub fn window_start_sample(&self) -> u64 {
+        let first = self.produced.saturating_sub(ANALYSIS_LEN as u64);
+        (first * self.decimator.factor() as u64)
+            .saturating_sub(self.decimator.delay_samples() as u64)
+    }
+
+    /// Input-rate samples spanned by one analysis window.
+    pub fn window_span_samples(&self) -> u32 {
+        (ANALYSIS_LEN * self.decimator.factor()) as u32
+    }
+
+    /// Windows the last [`ANALYSIS_LEN`] samples into `scratch`, transforms, finds peak groups.
+    pub fn analyze(&self, config: &Config, scratch: &mut [f32; ANALYSIS_LEN]) -> Peaks {
+        let (old, new) = self.ring.split_at(self.write);
+        scratch[..new.len()].copy_from_slice(new);
+        scratch[new.len()..].copy_from_slice(old);
+        crate::window::apply_hann(scratch);
+        let mut peaks = find_peaks(scratch, config);
+        peaks.sample_index = self.window_start_sample();
+        peaks.span_samples = self.window_span_samples();
+        peaks
+    }
+}
+
+/// Transforms a windowed [`ANALYSIS_LEN`]-sample buffer (decimated rate) and finds up to four
+/// peak groups. On return `buf[..ANALYSIS_LEN / 2]` holds the magnitude spectrum.
+pub fn find_peaks(buf: &mut [f32; ANALYSIS_LEN], config: &Config) -> Peaks {
+    {
+        let spectrum = microfft::real::rfft_4096(buf);
+        spectrum[0].im = 0.0; // the Nyquist bin is packed here; it is outside every band used
+    }
+    // Magnitudes in place: bin k reads buf[2k], buf[2k+1] and writes buf[k] ≤ 2k.
+    for k in 0..ANALYSIS_LEN / 2 {
+        let (re, im) = (buf[2 * k], buf[2 * k + 1]);
+        buf[k] = libm::sqrtf(re * re + im * im);
+    }
+    let mags = &buf[..ANALYSIS_LEN / 2];
+    let bin_hz = DECIMATED_RATE_HZ as f32 / ANALYSIS_LEN as f32;
+    let top = ((MAX_ANALYSIS_HZ / bin_hz) as usize).min(mags.len() - 2);
+    let low = (FLOOR_LOW_HZ / bin_hz) as usize;
+    let floor = mags[low..top].iter().sum::<f32>() / (top - low) as f32;
+    let threshold = config.peak_floor_ratio * floor;
+
+    // Fundamental candidates: local maxima above the threshold, strongest kept.
+    let mut cands = [(0usize, 0.0f32); MAX_CANDIDATES];
+    let mut n_cands = 0usize;
+    let k_min = (libm::floorf(config.bpf_min_hz / bin_hz) as usize).max(2);
+    let k_max = (libm::ceilf(config.bpf_max_hz / bin_hz) as usize).min(top);
+    for k in k_min..=k_max {
+        let m = mags[k];
+        if m > threshold && m >= mags[k - 1] && m > mags[k + 1] {
+            insert_strongest(&mut cands, &mut n_cands, (k, m));
+        }
+    }
+    // Harmonic groups of the candidates.
+    let mut groups = [Group::default(); MAX_CANDIDATES];
+    for (g, &(k, _)) in groups.iter_mut().zip(&cands[..n_cands]) {
+        *g = harmonic_group(mags, k, bin_hz, top, config.harmonics, threshold * 0.5);
+    }
+    let groups = &mut groups[..n_cands];
+    groups.sort_unstable_by(|a, b| b.score.total_cmp(&a.score));
+
+    let mut out = Peaks::default();
+    let best = groups.first().map_or(0.0, |g| g.score);
+    let tolerance = 2.0 * bin_hz;
+    for g in groups.iter() {
+        if out.count as usize == out.peaks.len()
+            || g.score < config.peak_relative_score * best
+            || g.score <= 0.0
+        {
+            break;
+        }
+        let related = out.peaks[..out.count as usize].iter().any(|a| {
+            let (lo, hi) = if g.hz > a.hz { (a.hz, g.hz) } else { (g.hz, a.hz) };
+            let n = libm::roundf(hi / lo);
+            libm::fabsf(hi - n * lo) < tolerance * n.max(1.0)
+        });
+        if !related {
+            out.peaks[out.count as usize] =
+                Peak { hz: g.hz, amplitude: g.amplitude, harmonicity: g.harmonicity };
+            out.count += 1;
+        }
+    }
+    out.bpf_hz = out.peaks[0].hz;
+    out
+}
+
+fn insert_strongest(cands: &mut [(usize, f32); MAX_CANDIDATES], n: &mut usize, c: (usize, f32)) {
+    if *n < cands.len() {
+        cands[*n] = c;
+        *n += 1;
+        return;
+    }
+    let (weakest, _) =
+        cands
+            .iter()
+            .enumerate()
+            .fold((0, f32::INFINITY), |acc, (i, x)| if x.1 < acc.1 { (i, x.1) } else { acc });
+    if cands[weakest].1 < c.1 {
+        cands[weakest] = c;
+    }
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Group {
+    hz: f32,
+    amplitude: f32,
+    harmonicity: f32,
+    score: f32,
+}
+
+/// Refines a spectral peak at bin `k`: (fractional bin, amplitude of the sinusoid in the
+/// units of the time signal, for a Hann window of [`ANALYSIS_LEN`]).
+pub fn refine_peak(mags: &[f32], k: usize) -> (f32, f32) {
+    let (m0, ml, mr) = (mags[k], mags[k - 1], mags[k + 1]);
+    let delta = if m0 <= 0.0 {
+        0.0
+    } else if mr > ml {
+        let a = mr / m0;
+        (2.0 * a - 1.0) / (a + 1.0)
+    } else {
+        let a = ml / m0;
+        -(2.0 * a - 1.0) / (a + 1.0)
+    };
+    let delta = delta.clamp(-0.5, 0.5);
+    // Hann response at offset δ relative to its centre: sinc(δ) / (1 − δ²).
+    let gain = if libm::fabsf(delta) < 1e-6 {
+        1.0
+    } else {
+        let x = core::f32::consts::PI * delta;
+        libm::sinf(x) / x / (1.0 - delta * delta)
+    };
+    // A real sinusoid of amplitude A gives |X| = A·N/4 with a Hann window at the bin centre.
+    let amplitude = 4.0 * m0 / (ANALYSIS_LEN as f32 * gain);
+    (k as f32 + delta, amplitude)
+}
+
+fn harmonic_group(
+    mags: &[f32],
+    k: usize,
+    bin_hz: f32,
+    top: usize,
+    harmonics: usize,
+    threshold: f32,
+) -> Group {
+    let (b1, a1) = refine_peak(mags, k);
+    let f1 = b1 * bin_hz;
+    let (mut num, mut den, mut found, mut expected) = (0.0f32, 0.0f32, 0u32, 0u32);
+    for h in 1..=harmonics.min(MAX_HARMONICS) {
+        let centre = h as f32 * b1;
+        let c = libm::roundf(centre) as usize;
+        if c + 2 > top {
+            break;
+        }
+        expected += 1;
+        let kk = (c - 1..=c + 1).fold(c, |best, i| if mags[i] > mags[best] { i } else { best });
+        let is_peak = mags[kk] >= mags[kk - 1] && mags[kk] >= mags[kk + 1] && mags[kk] > threshold;
+        if !is_peak {
+            continue;
+        }
+        let (bh, ah) = refine_peak(mags, kk);
+        if libm::fabsf(bh - centre) > 1.5 {
+            continue;
+        }
+        num += ah * bh * bin_hz / h as f32;
+        den += ah;
+        found += 1;
+    }
+    if den <= 0.0 {
+        return Group { hz: f1, amplitude: a1, harmonicity: 0.0, score: 0.0 };
+    }
+    Group {
+        hz: num / den,
+        amplitude: a1,
+        harmonicity: found as f32 / expected.max(1) as f32,
+        score: den,
+    }
+}

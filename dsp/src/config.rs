@@ -1,0 +1,158 @@
+//! Pipeline configuration: geometry, rates, and the tunables with their defaults.
+
+use crate::{ConfigError, Geometry, MAX_BAND_BINS, MAX_HARMONICS, MAX_LAG};
+
+/// Everything the [`crate::Pipeline`] needs to know. Build with [`Config::new`], then adjust
+/// tunables; [`crate::Pipeline::configure`] validates the whole.
+///
+/// ```
+/// let mut c = aim_dsp::Config::new(aim_dsp::Geometry::respeaker_6mic(), 48_000);
+/// c.average_blocks = 8; // fewer, steadier DoA outputs
+/// assert_eq!(c.block_len, 1024);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Config {
+    /// Microphone positions; mic i is TDM slot i.
+    pub geometry: Geometry,
+    /// Sample rate, Hz: 16 000 or 48 000.
+    pub sample_rate_hz: u32,
+    /// Words per TDM frame (slots); slots past the microphone count are ignored. Default 8.
+    pub tdm_slots: usize,
+    /// Samples per block and FFT length of the spatial path: 512 or 1024.
+    /// Default 1024 at 48 kHz (21.3 ms), 512 at 16 kHz (32 ms).
+    pub block_len: usize,
+    /// Lower edge of the GCC-PHAT band mask, Hz. Default 200.
+    pub band_low_hz: f32,
+    /// Upper edge of the GCC-PHAT band mask, Hz. Default 6000.
+    pub band_high_hz: f32,
+    /// Blocks whose PHAT cross spectra are averaged into one DoA estimate. Default 4.
+    pub average_blocks: u32,
+    /// Speed of sound, m/s. Default 343 (20 °C).
+    pub speed_of_sound_m_s: f32,
+    /// Lowest blade-passing frequency searched, Hz. Default 100.
+    pub bpf_min_hz: f32,
+    /// Highest blade-passing frequency searched, Hz. Default 1000.
+    pub bpf_max_hz: f32,
+    /// Harmonics (including the fundamental) used per BPF peak group. Default 8.
+    pub harmonics: usize,
+    /// A BPF fundamental must stand this many times above the mean spectral level of the
+    /// 100 Hz – 4 kHz band. Default 6.
+    pub peak_floor_ratio: f32,
+    /// A further peak group must reach this fraction of the strongest group's harmonic
+    /// score. Default 0.1.
+    pub peak_relative_score: f32,
+    /// Blocks between two `Health` outputs. Default 48 (about 1 s at 48 kHz / 1024).
+    pub health_interval_blocks: u32,
+}
+
+impl Config {
+    /// Defaults for `geometry` at `sample_rate_hz` (see each field); `tdm_slots` = 8.
+    pub fn new(geometry: Geometry, sample_rate_hz: u32) -> Self {
+        Self {
+            geometry,
+            sample_rate_hz,
+            tdm_slots: 8,
+            block_len: if sample_rate_hz <= 16_000 { 512 } else { 1024 },
+            band_low_hz: 200.0,
+            band_high_hz: 6000.0,
+            average_blocks: 4,
+            speed_of_sound_m_s: 343.0,
+            bpf_min_hz: 100.0,
+            bpf_max_hz: 1000.0,
+            harmonics: 8,
+            peak_floor_ratio: 6.0,
+            peak_relative_score: 0.1,
+            health_interval_blocks: 48,
+        }
+    }
+
+    /// A placeholder for `const` construction; refused by validation.
+    pub(crate) const fn empty() -> Self {
+        Self {
+            geometry: Geometry::empty(),
+            sample_rate_hz: 0,
+            tdm_slots: 8,
+            block_len: 1024,
+            band_low_hz: 200.0,
+            band_high_hz: 6000.0,
+            average_blocks: 4,
+            speed_of_sound_m_s: 343.0,
+            bpf_min_hz: 100.0,
+            bpf_max_hz: 1000.0,
+            harmonics: 8,
+            peak_floor_ratio: 6.0,
+            peak_relative_score: 0.1,
+            health_interval_blocks: 48,
+        }
+    }
+
+    /// FFT bin spacing of the spatial path, Hz.
+    pub fn bin_hz(&self) -> f32 {
+        self.sample_rate_hz as f32 / self.block_len as f32
+    }
+
+    /// First and one-past-last FFT bin of the GCC-PHAT band.
+    pub(crate) fn band_bins(&self) -> (usize, usize) {
+        let lo = libm::ceilf(self.band_low_hz / self.bin_hz()) as usize;
+        let hi = libm::floorf(self.band_high_hz / self.bin_hz()) as usize + 1;
+        (lo.max(1), hi)
+    }
+
+    /// Checks every field; the pipeline runs only validated configurations.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let g = Geometry::from_positions(self.geometry.positions())?;
+        if self.sample_rate_hz != 16_000 && self.sample_rate_hz != 48_000 {
+            return Err(ConfigError::SampleRate(self.sample_rate_hz));
+        }
+        if self.block_len != 512 && self.block_len != 1024 {
+            return Err(ConfigError::BlockLen(self.block_len));
+        }
+        if self.tdm_slots < g.len() || self.tdm_slots > 16 {
+            return Err(ConfigError::TdmSlots { slots: self.tdm_slots, mics: g.len() });
+        }
+        if !(300.0..=400.0).contains(&self.speed_of_sound_m_s) {
+            return Err(ConfigError::SpeedOfSound(self.speed_of_sound_m_s));
+        }
+        let max_lag = g.aperture_m() / self.speed_of_sound_m_s * self.sample_rate_hz as f32 + 1.0;
+        if max_lag > MAX_LAG as f32 {
+            return Err(ConfigError::ApertureTooLarge { aperture_m: g.aperture_m() });
+        }
+        let nyquist = self.sample_rate_hz as f32 / 2.0;
+        let band_ok = self.band_low_hz.is_finite()
+            && self.band_high_hz.is_finite()
+            && self.band_low_hz > 0.0
+            && self.band_high_hz <= nyquist
+            && self.band_high_hz - self.band_low_hz >= 4.0 * self.bin_hz();
+        if !band_ok {
+            return Err(ConfigError::Band { low_hz: self.band_low_hz, high_hz: self.band_high_hz });
+        }
+        let (lo, hi) = self.band_bins();
+        if hi - lo > MAX_BAND_BINS {
+            return Err(ConfigError::BandTooWide { bins: hi - lo });
+        }
+        if self.average_blocks == 0 || self.average_blocks > 64 {
+            return Err(ConfigError::AverageBlocks(self.average_blocks));
+        }
+        let bpf_ok = self.bpf_min_hz.is_finite()
+            && self.bpf_max_hz.is_finite()
+            && self.bpf_min_hz >= 50.0
+            && self.bpf_max_hz <= 1500.0
+            && self.bpf_max_hz > self.bpf_min_hz;
+        if !bpf_ok {
+            return Err(ConfigError::BpfRange { min_hz: self.bpf_min_hz, max_hz: self.bpf_max_hz });
+        }
+        if self.harmonics == 0 || self.harmonics > MAX_HARMONICS {
+            return Err(ConfigError::Harmonics(self.harmonics));
+        }
+        if !(self.peak_floor_ratio.is_finite() && self.peak_floor_ratio > 0.0) {
+            return Err(ConfigError::Tunable("peak_floor_ratio"));
+        }
+        if !(self.peak_relative_score.is_finite() && self.peak_relative_score > 0.0) {
+            return Err(ConfigError::Tunable("peak_relative_score"));
+        }
+        if self.health_interval_blocks == 0 {
+            return Err(ConfigError::Tunable("health_interval_blocks"));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,139 @@
+//! Fixed-point front end: TDM word → Q31 → DC removal → Q15 with a block exponent.
+//!
+//! A TDM slot carries a 24-bit sample left-justified in 32 bits (`sample << 8`), which read as
+//! an `i32` is already Q31 (fraction of full scale). DC is removed per microphone by subtracting
+//! a first-order running mean kept with 16 extra fractional bits; its −3 dB corner is about
+//! fs / (2π · 2^k) with k = [`dc_shift`] (7.5 Hz at 48 kHz, 5 Hz at 16 kHz). A block is then
+//! scaled by one shift common to all microphones (so their relative levels survive) and rounded
+//! to Q15: `value = q15 · 2^(exponent − 15)` of full scale, `exponent = −shift`.
+
+use crate::MAX_MICS;
+
+/// Extra fractional bits of the DC estimate.
+const DC_FRAC_BITS: u32 = 16;
+/// Largest block shift: a block quieter than 2^-16 of full scale is not amplified further.
+pub const MAX_BLOCK_SHIFT: u32 = 16;
+/// Magnitude at or above which a word counts as clipped (24-bit full scale, left-justified).
+pub const CLIP_LEVEL: i32 = 0x7FFF_FF00 - 0x100;
+
+/// Running-mean length exponent k for a sample rate: the DC corner sits near 5–8 Hz.
+pub fn dc_shift(sample_rate_hz: u32) -> u32 {
+    if sample_rate_hz >= 32_000 {
+        10
+    } else {
+        9
+    }
+}
+
+/// Per-microphone DC removal state and the clip counter.
+#[derive(Debug, Clone)]
+pub struct FrontEnd {
+    dc: [i64; MAX_MICS],
+    shift: u32,
+    /// Words at full scale since the counter was last taken.
+    pub clipped: u32,
+}
+
+impl FrontEnd {
+    /// A front end with zero DC estimates; `shift` from [`dc_shift`].
+    pub const fn new(shift: u32) -> Self {
+        Self { dc: [0; MAX_MICS], shift, clipped: 0 }
+    }
+
+    /// One TDM word of microphone `mic` → DC-removed Q31 sample (saturated).
+    ///
+    /// ```
+    /// let mut fe = aim_dsp::frontend::FrontEnd::new(10);
+    /// // a constant input decays towards zero at the output
+    /// let mut y = 0;
+    /// for _ in 0..20_000 { y = fe.remove_dc(0, 0x1000_0000); }
+    /// assert!(y.abs() < 0x0010_0000);
+    /// ```
+    #[inline]
+    pub fn remove_dc(&mut self, mic: usize, word: i32) -> i32 {
+        if word >= CLIP_LEVEL || word <= -CLIP_LEVEL {
+            self.clipped = self.clipped.saturating_add(1);
+        }
+        let x = (word as i64) << DC_FRAC_BITS;
+        let dc = &mut self.dc[mic];
+        *dc += (x - *dc) >> self.shift;
+        let y = (word as i64) - (*dc >> DC_FRAC_BITS);
+        y.clamp(i32::MIN as i64, i32::MAX as i64) as i32
+    }
+}
+
+/// Block shift for the largest absolute Q31 sample of a block: the left shift that puts the
+/// peak just below full scale, at most [`MAX_BLOCK_SHIFT`].
+///
+/// ```
+/// assert_eq!(aim_dsp::frontend::block_shift(0x4000_0000), 0);
+/// assert_eq!(aim_dsp::frontend::block_shift(0x0100_0000), 6);
+/// assert_eq!(aim_dsp::frontend::block_shift(0), 16);
+/// ```
+pub fn block_shift(max_abs: u32) -> u32 {
+    if max_abs == 0 {
+        return MAX_BLOCK_SHIFT;
+    }
+    (max_abs.leading_zeros().saturating_sub(1)).min(MAX_BLOCK_SHIFT)
+}
+
+/// Q31 sample → Q15 after the block shift, rounded to nearest and saturated.
+#[inline]
+pub fn to_q15(q31: i32, shift: u32) -> i16 {
+    let v = ((q31 as i64) << shift) + (1 << 15);
+    (v >> 16).clamp(i16::MIN as i64, i16::MAX as i64) as i16
+}
+
+/// Largest absolute value over the first `len` samples of each of the given channels.
+pub fn max_abs(channels: &[[i32; crate::MAX_BLOCK_LEN]], len: usize) -> u32 {
+    let mut m = 0u32;
+    for ch in channels {
+        for &s in &ch[..len] {
+            m = m.max(s.unsigned_abs());
+        }
+    }
+    m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn q15_round_trip_keeps_relative_level() {
+        // A block whose peak is 2^-8 of full scale gets shift 7 and keeps ~15 bits.
+        let x: i32 = 1 << 23; // 2^-8 of full scale
+        let s = block_shift(x as u32);
+        assert_eq!(s, 7);
+        let q = to_q15(x, s);
+        assert_eq!(q, 1 << 14); // 0.5 in Q15, exponent −7 → 2^-8
+        assert_eq!(to_q15(i32::MIN, 0), i16::MIN);
+        assert_eq!(to_q15(i32::MAX, 0), i16::MAX);
+    }
+
+    #[test]
+    fn dc_is_removed_and_tones_pass() {
+        // Offset of 10 % full scale plus a 1 kHz tone at 48 kHz: after settling the output mean
+        // is near zero and the tone amplitude is kept within 0.1 %.
+        let mut fe = FrontEnd::new(dc_shift(48_000));
+        let amp = 0.2 * (1u64 << 31) as f64;
+        let mut sum = 0.0;
+        let mut peak: f64 = 0.0;
+        for n in 0..96_000 {
+            let t = n as f64 / 48_000.0;
+            let x =
+                0.1 * (1u64 << 31) as f64 + amp * (2.0 * std::f64::consts::PI * 1000.0 * t).sin();
+            let y = fe.remove_dc(3, x as i32) as f64;
+            if n >= 48_000 {
+                sum += y;
+                peak = peak.max(y.abs());
+            }
+        }
+        assert!((sum / 48_000.0).abs() < 1e-4 * amp, "residual DC {}", sum / 48_000.0);
+        assert!((peak / amp - 1.0).abs() < 1e-3, "tone gain {}", peak / amp);
+        assert_eq!(fe.clipped, 0);
+        fe.remove_dc(0, i32::MAX);
+        fe.remove_dc(0, i32::MIN + 1);
+        assert_eq!(fe.clipped, 2);
+    }
+}

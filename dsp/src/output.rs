@@ -1,0 +1,73 @@
+//! What the pipeline emits: direction of arrival, BPF peaks and health, each stamped with the
+//! sample index (the array's own clock) of the first sample it describes.
+
+/// One result of the streaming [`crate::Pipeline`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Output {
+    /// Direction of arrival from the averaged GCC-PHAT pair delays.
+    Doa(Doa),
+    /// Blade-passing-frequency peak groups from the long mono spectrum.
+    Peaks(Peaks),
+    /// Front-end statistics for the last interval.
+    Health(Health),
+}
+
+/// Direction of arrival, far field, planar array (source on the +z side).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Doa {
+    /// Index of the first sample of the first block averaged into this estimate.
+    pub sample_index: u64,
+    /// Samples covered (`average_blocks · block_len`).
+    pub span_samples: u32,
+    /// Azimuth, radians, from +x towards +y, in (−π, π].
+    pub azimuth_rad: f32,
+    /// Zenith angle from the array normal (+z), radians, in [0, π/2].
+    pub zenith_rad: f32,
+    /// Weighted RMS misfit of the pair delays to the plane-wave model, samples.
+    pub residual: f32,
+    /// Mean pair quality, 0 (no coherent peak) to 1 (one clean peak in every pair).
+    pub quality: f32,
+    /// Pairs with non-zero weight in the fit.
+    pub pairs_used: u8,
+}
+
+/// One BPF peak group: a fundamental with its harmonics.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Peak {
+    /// Fundamental frequency: amplitude-weighted mean of (harmonic frequency / harmonic number), Hz.
+    pub hz: f32,
+    /// Amplitude of the fundamental, fraction of microphone full scale (mean over microphones).
+    pub amplitude: f32,
+    /// Fraction of the expected harmonics (within the analysed band) found as spectral peaks, 0–1.
+    pub harmonicity: f32,
+}
+
+/// Up to four BPF peak groups, strongest harmonic score first.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Peaks {
+    /// Index of the (input-rate) sample at which the analysis window starts.
+    pub sample_index: u64,
+    /// Input-rate samples covered by the analysis window.
+    pub span_samples: u32,
+    /// The strongest group's fundamental, Hz (0 when `count` = 0).
+    pub bpf_hz: f32,
+    /// Valid entries in `peaks`.
+    pub count: u8,
+    /// Peak groups; entries past `count` are zero.
+    pub peaks: [Peak; 4],
+}
+
+/// Front-end statistics over the last `health_interval_blocks` blocks.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Health {
+    /// Index of the first sample of the interval.
+    pub sample_index: u64,
+    /// Blocks processed since the pipeline was configured.
+    pub blocks: u32,
+    /// Samples at 24-bit full scale in the interval (all microphones).
+    pub clipped_samples: u32,
+    /// Largest absolute DC-removed sample in the interval, dB relative to full scale.
+    pub peak_dbfs: f32,
+    /// Block exponent of the last block: Q15 value · 2^(exponent − 15) = fraction of full scale.
+    pub block_exponent: i8,
+}

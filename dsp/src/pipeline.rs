@@ -1,0 +1,341 @@
+//! The streaming pipeline: TDM words in, `Doa` / `Peaks` / `Health` out.
+//!
+//! Output rates with the defaults: one `Doa` per `average_blocks` blocks (48 kHz, 1024-sample
+//! blocks, 4 blocks: 11.7 per second; 16 kHz, 512, 4: 7.8 per second), one `Peaks` per
+//! 2048 decimated samples (3.9 per second at either rate), one `Health` per
+//! `health_interval_blocks` blocks (about 1 per second at 48 kHz). A `Doa` is left out when
+//! fewer than two pairs, spanning the plane, carry a coherent peak (silence, a single tone).
+//!
+//! Memory is fixed: `size_of::<Pipeline>()` is about 112 KB (see the `memory_budget` test), all
+//! of it in the struct, nothing on the heap and only small temporaries on the stack. The
+//! struct is `const`-constructible ([`Pipeline::empty`]) so the firmware can place it in a
+//! `static` and [`Pipeline::configure`] it there, without a large stack temporary.
+
+use microfft::Complex32;
+
+use crate::bpf::{SpectralPath, ANALYSIS_LEN};
+use crate::doa::{self, Pair};
+use crate::frontend::{self, FrontEnd};
+use crate::gcc_phat::{self, DelayEstimate};
+use crate::{
+    Config, ConfigError, Doa, Health, Output, MAX_BAND_BINS, MAX_BLOCK_LEN, MAX_MICS, MAX_PAIRS,
+};
+
+/// Scratch floats: the spatial FFT (first [`MAX_BLOCK_LEN`]) with the unit band spectra of all
+/// microphones after it, or the whole BPF transform. Both uses fit exactly.
+const SCRATCH_LEN: usize = ANALYSIS_LEN;
+const _: () = assert!(MAX_BLOCK_LEN + MAX_MICS * 2 * MAX_BAND_BINS <= SCRATCH_LEN);
+
+/// The on-chip processing of one array, in fixed memory. See the module docs for output rates.
+#[derive(Debug, Clone)]
+pub struct Pipeline {
+    config: Config,
+    configured: bool,
+    mics: usize,
+    pair_count: usize,
+    first_bin: usize,
+    band_bins: usize,
+    samples_per_metre: f32,
+    pairs: [Pair; MAX_PAIRS],
+    delays: [DelayEstimate; MAX_PAIRS],
+    // front end
+    front: FrontEnd,
+    block: [[i32; MAX_BLOCK_LEN]; MAX_MICS],
+    slot: usize,
+    fill: usize,
+    block_start: u64,
+    blocks: u32,
+    last_exponent: i8,
+    // spatial path
+    window: [f32; MAX_BLOCK_LEN],
+    cross: [[Complex32; MAX_BAND_BINS]; MAX_PAIRS],
+    averaged: u32,
+    average_start: u64,
+    // spectral path
+    spectral: SpectralPath,
+    scratch: [f32; SCRATCH_LEN],
+    // health
+    health_start: u64,
+    health_blocks: u32,
+    health_peak: u32,
+}
+
+impl Pipeline {
+    /// An unconfigured pipeline (ignores input until [`Pipeline::configure`]); `const` so it
+    /// can initialise a `static`.
+    pub const fn empty() -> Self {
+        Self {
+            config: Config::empty(),
+            configured: false,
+            mics: 0,
+            pair_count: 0,
+            first_bin: 0,
+            band_bins: 0,
+            samples_per_metre: 0.0,
+            pairs: [Pair { i: 0, j: 0, baseline_m: [0.0; 2], max_lag: 0 }; MAX_PAIRS],
+            delays: [DelayEstimate { delay_samples: 0.0, coherence: 0.0, peak_margin: 0.0 };
+                MAX_PAIRS],
+            front: FrontEnd::new(10),
+            block: [[0; MAX_BLOCK_LEN]; MAX_MICS],
+            slot: 0,
+            fill: 0,
+            block_start: 0,
+            blocks: 0,
+            last_exponent: 0,
+            window: [0.0; MAX_BLOCK_LEN],
+            cross: [[Complex32::new(0.0, 0.0); MAX_BAND_BINS]; MAX_PAIRS],
+            averaged: 0,
+            average_start: 0,
+            spectral: SpectralPath::empty(),
+            scratch: [0.0; SCRATCH_LEN],
+            health_start: 0,
+            health_blocks: 0,
+            health_peak: 0,
+        }
+    }
+
+    /// A configured pipeline by value (about 112 KB: prefer [`Pipeline::empty`] +
+    /// [`Pipeline::configure`] in place on small stacks).
+    pub fn new(config: &Config) -> Result<Self, ConfigError> {
+        let mut p = Self::empty();
+        p.configure(config)?;
+        Ok(p)
+    }
+
+    /// Validates `config` and (re)starts the pipeline with it; sample index 0 is the next word.
+    /// On error the pipeline is left unconfigured.
+    pub fn configure(&mut self, config: &Config) -> Result<(), ConfigError> {
+        self.configured = false;
+        config.validate()?;
+        self.config = *config;
+        let g = &config.geometry;
+        self.mics = g.len();
+        let (lo, hi) = config.band_bins();
+        self.first_bin = lo;
+        self.band_bins = hi - lo;
+        self.samples_per_metre = config.sample_rate_hz as f32 / config.speed_of_sound_m_s;
+        let p = g.positions();
+        let mut n = 0;
+        for i in 0..self.mics {
+            for j in i + 1..self.mics {
+                let b = [p[i][0] - p[j][0], p[i][1] - p[j][1]];
+                let lag = libm::hypotf(b[0], b[1]) * self.samples_per_metre + 1.0;
+                self.pairs[n] =
+                    Pair { i: i as u8, j: j as u8, baseline_m: b, max_lag: libm::ceilf(lag) as u8 };
+                n += 1;
+            }
+        }
+        self.pair_count = n;
+        crate::window::hann(&mut self.window[..config.block_len]);
+        self.front = FrontEnd::new(frontend::dc_shift(config.sample_rate_hz));
+        self.spectral.configure(config.sample_rate_hz);
+        self.reset_stream();
+        self.configured = true;
+        Ok(())
+    }
+
+    fn reset_stream(&mut self) {
+        self.slot = 0;
+        self.fill = 0;
+        self.block_start = 0;
+        self.blocks = 0;
+        self.averaged = 0;
+        self.average_start = 0;
+        self.health_start = 0;
+        self.health_blocks = 0;
+        self.health_peak = 0;
+        self.delays = [DelayEstimate::default(); MAX_PAIRS];
+        for c in &mut self.cross {
+            c.fill(Complex32::new(0.0, 0.0));
+        }
+    }
+
+    /// The configuration in force.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The microphone pairs, in the order of [`Pipeline::pair_delays`]: (0,1), (0,2), …, (1,2), ….
+    pub fn pairs(&self) -> &[Pair] {
+        &self.pairs[..self.pair_count]
+    }
+
+    /// The pair delays behind the last `Doa` (or the last averaging period).
+    pub fn pair_delays(&self) -> &[DelayEstimate] {
+        &self.delays[..self.pair_count]
+    }
+
+    /// Interleaved TDM words (frames of `tdm_slots` words; mic i = slot i; 24-bit samples
+    /// left-justified in i32), any chunk length: a frame may be split across calls. Results go
+    /// to `sink` as their blocks complete. Ignored while unconfigured.
+    pub fn push(&mut self, words: &[i32], sink: &mut impl FnMut(Output)) {
+        if !self.configured {
+            return;
+        }
+        for &w in words {
+            if self.slot < self.mics {
+                self.block[self.slot][self.fill] = self.front.remove_dc(self.slot, w);
+            }
+            self.slot += 1;
+            if self.slot == self.config.tdm_slots {
+                self.slot = 0;
+                self.fill += 1;
+                if self.fill == self.config.block_len {
+                    self.fill = 0;
+                    self.process_block(sink);
+                }
+            }
+        }
+    }
+
+    fn process_block(&mut self, sink: &mut impl FnMut(Output)) {
+        let n = self.config.block_len;
+        let peak = frontend::max_abs(&self.block[..self.mics], n);
+        let shift = frontend::block_shift(peak);
+        self.last_exponent = -(shift as i8);
+        self.health_peak = self.health_peak.max(peak);
+
+        self.spatial_block(shift);
+        if self.averaged == 0 {
+            self.average_start = self.block_start;
+        }
+        self.averaged += 1;
+        if self.averaged == self.config.average_blocks {
+            self.averaged = 0;
+            if let Some(doa) = self.estimate_direction() {
+                sink(Output::Doa(doa));
+            }
+        }
+        self.spectral_block(shift, sink);
+
+        self.blocks = self.blocks.wrapping_add(1);
+        self.health_blocks += 1;
+        self.block_start += n as u64;
+        if self.health_blocks == self.config.health_interval_blocks {
+            sink(Output::Health(self.take_health()));
+        }
+    }
+
+    /// Windowed FFT and PHAT band of every microphone, then every pair's cross spectrum.
+    fn spatial_block(&mut self, shift: u32) {
+        let n = self.config.block_len;
+        let nb = self.band_bins;
+        let (fft_buf, units) = self.scratch.split_at_mut(MAX_BLOCK_LEN);
+        for mic in 0..self.mics {
+            for ((x, &s), &w) in
+                fft_buf[..n].iter_mut().zip(&self.block[mic][..n]).zip(&self.window[..n])
+            {
+                *x = frontend::to_q15(s, shift) as f32 * w;
+            }
+            let unit = &mut units[mic * 2 * MAX_BAND_BINS..][..2 * nb];
+            if n == 1024 {
+                if let Some(buf) = fft_buf.first_chunk_mut::<1024>() {
+                    gcc_phat::phat_band(microfft::real::rfft_1024(buf), self.first_bin, unit);
+                }
+            } else if let Some(buf) = fft_buf.first_chunk_mut::<512>() {
+                gcc_phat::phat_band(microfft::real::rfft_512(buf), self.first_bin, unit);
+            }
+        }
+        for (pair, acc) in self.pairs[..self.pair_count].iter().zip(&mut self.cross) {
+            let ui = &units[pair.i as usize * 2 * MAX_BAND_BINS..][..2 * nb];
+            let uj = &units[pair.j as usize * 2 * MAX_BAND_BINS..][..2 * nb];
+            gcc_phat::accumulate_cross(&mut acc[..nb], ui, uj);
+        }
+    }
+
+    fn estimate_direction(&mut self) -> Option<Doa> {
+        let nb = self.band_bins;
+        for ((pair, acc), d) in
+            self.pairs[..self.pair_count].iter().zip(&mut self.cross).zip(&mut self.delays)
+        {
+            *d = gcc_phat::estimate_delay(
+                &acc[..nb],
+                self.first_bin,
+                self.config.block_len,
+                pair.max_lag as usize,
+                self.config.average_blocks,
+            );
+            acc[..nb].fill(Complex32::new(0.0, 0.0));
+        }
+        let delays = &self.delays[..self.pair_count];
+        let fit = doa::fit(&self.pairs[..self.pair_count], delays, self.samples_per_metre)?;
+        let quality = delays.iter().map(|d| d.quality()).sum::<f32>() / self.pair_count as f32;
+        Some(Doa {
+            sample_index: self.average_start,
+            span_samples: self.config.average_blocks * self.config.block_len as u32,
+            azimuth_rad: fit.azimuth_rad,
+            zenith_rad: fit.zenith_rad,
+            residual: fit.residual_samples,
+            quality,
+            pairs_used: fit.pairs_used,
+        })
+    }
+
+    /// Mono mean of the Q15 block (fraction of full scale) into the decimator; BPF analysis
+    /// when one is due.
+    fn spectral_block(&mut self, shift: u32, sink: &mut impl FnMut(Output)) {
+        let scale = 1.0 / ((1u64 << (shift + 15)) as f32 * self.mics as f32);
+        let mut due = false;
+        for t in 0..self.config.block_len {
+            let sum: i32 = self.block[..self.mics]
+                .iter()
+                .map(|ch| frontend::to_q15(ch[t], shift) as i32)
+                .sum();
+            due |= self.spectral.push(sum as f32 * scale);
+        }
+        if due {
+            let peaks = self.spectral.analyze(&self.config, &mut self.scratch);
+            sink(Output::Peaks(peaks));
+        }
+    }
+
+    fn take_health(&mut self) -> Health {
+        let peak = self.health_peak as f32 / 2_147_483_648.0;
+        let h = Health {
+            sample_index: self.health_start,
+            blocks: self.blocks,
+            clipped_samples: self.front.clipped,
+            peak_dbfs: if peak > 0.0 { 20.0 * libm::log10f(peak) } else { -200.0 },
+            block_exponent: self.last_exponent,
+        };
+        self.front.clipped = 0;
+        self.health_peak = 0;
+        self.health_blocks = 0;
+        self.health_start = self.block_start;
+        h
+    }
+}
+
+impl Default for Pipeline {
+    fn default() -> Self {
+        Self::empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Geometry;
+
+    #[test]
+    fn memory_budget() {
+        let size = core::mem::size_of::<Pipeline>();
+        assert!(size <= 128 * 1024, "Pipeline is {size} bytes");
+    }
+
+    #[test]
+    fn bad_config_is_refused_and_leaves_pipeline_inert() {
+        let mut c = Config::new(Geometry::respeaker_6mic(), 44_100);
+        assert_eq!(Pipeline::new(&c).err(), Some(ConfigError::SampleRate(44_100)));
+        c.sample_rate_hz = 48_000;
+        c.tdm_slots = 4;
+        assert_eq!(Pipeline::new(&c).err(), Some(ConfigError::TdmSlots { slots: 4, mics: 6 }));
+        c.tdm_slots = 8;
+        c.band_high_hz = 12_000.0;
+        assert_eq!(Pipeline::new(&c).err(), Some(ConfigError::BandTooWide { bins: 252 }));
+        let mut p = Pipeline::empty();
+        let mut n = 0;
+        p.push(&[1 << 20; 8 * 4096], &mut |_| n += 1);
+        assert_eq!(n, 0);
+    }
+}
