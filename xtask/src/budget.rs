@@ -20,6 +20,12 @@ pub struct Budget {
     /// Flash and static-RAM budgets of the firmware image.
     #[serde(default)]
     pub size: Vec<SizeBudget>,
+    /// Instruction budgets per second of audio, measured on QEMU's Cortex-M4F model.
+    #[serde(default)]
+    pub instructions: Vec<crate::instructions::InstructionBudget>,
+    /// RAM budgets measured on QEMU's Cortex-M4F model (the DSP's working memory).
+    #[serde(default)]
+    pub target_ram: Vec<crate::instructions::RamBudget>,
 }
 
 /// The firmware image: package and target triple.
@@ -118,7 +124,7 @@ pub fn build_firmware(root: &Path, firmware: &Firmware) -> Result<PathBuf> {
 }
 
 /// Cargo's target directory for this workspace (honours `CARGO_TARGET_DIR`).
-fn target_dir(root: &Path) -> Result<PathBuf> {
+pub(crate) fn target_dir(root: &Path) -> Result<PathBuf> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = std::process::Command::new(cargo)
         .args(["metadata", "--format-version", "1", "--no-deps"])
@@ -143,7 +149,7 @@ pub fn run(root: &Path) -> Result<()> {
     let data = std::fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
     let size = elf_size::measure(&data, &budget.regions)
         .with_context(|| format!("measuring {}", elf.display()))?;
-    let lines: Vec<Line> = budget
+    let mut lines: Vec<Line> = budget
         .size
         .iter()
         .map(|b| Line {
@@ -156,6 +162,11 @@ pub fn run(root: &Path) -> Result<()> {
             unit: b.unit.clone(),
         })
         .collect();
+    if !budget.instructions.is_empty() || !budget.target_ram.is_empty() {
+        let binaries = crate::qemu::build(root)?;
+        let measured = crate::instructions::measure(root, &binaries)?;
+        lines.extend(measured.lines(&budget.instructions, &budget.target_ram)?);
+    }
     report(&lines)
 }
 

@@ -3,6 +3,8 @@
 //! - `cargo xtask budget`: builds the firmware for the board, measures flash and static RAM
 //!   from its ELF, and checks every budget in `budget.toml`, one line each:
 //!   `budget: <name> <measured> <limit> <unit> ok|OVER`. Exits non-zero on any OVER.
+//! - `cargo xtask qemu`: on QEMU's Cortex-M4F model (`tests/qemu`), checks that the DSP's
+//!   output equals the host's bit for bit and prints the instructions of every DSP stage.
 //! - `cargo xtask ci`: everything `.ci/run` checks once the tools are installed.
 use std::{
     path::{Path, PathBuf},
@@ -13,12 +15,15 @@ use anyhow::{bail, Context, Result};
 
 mod budget;
 mod elf_size;
+mod instructions;
+mod qemu;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("budget") => budget::run(&workspace_root()),
         Some("ci") => ci(&workspace_root()),
+        Some("qemu") => qemu::run_all(&workspace_root()),
         Some("help" | "--help" | "-h") | None => {
             print!("{USAGE}");
             Ok(())
@@ -39,6 +44,7 @@ usage: cargo xtask <command>
 
 commands:
   budget   build the firmware and check flash, RAM and instruction budgets (budget.toml)
+  qemu     QEMU Cortex-M4F: host/target bit parity, instructions per DSP stage
   ci       run every check of .ci/run (tests, fmt, clippy, firmware build, budgets)
 ";
 
@@ -82,6 +88,8 @@ fn ci(root: &Path) -> Result<()> {
             "warnings",
         ],
     )?;
+    // Host output equals the Cortex-M4F model's bit for bit (the counts come with `budget`).
+    qemu::parity(&qemu::build(root)?)?;
     // Builds the firmware release ELF for the board, then measures it.
     budget::run(root)
 }

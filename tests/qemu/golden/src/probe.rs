@@ -1,0 +1,112 @@
+//! Probe ids: the points the `cost` binary marks in its program, and what the instructions
+//! after each are charged to.
+//!
+//! The guest calls slot `id` of its probe table; the `insn_probe` QEMU plugin charges every
+//! instruction executed from one probe to the next to the first one's id, and writes the totals
+//! per id when [`Probe::Dump`] runs. Host (`xtask`) and guest share this list.
+
+/// What the instructions after a probe belong to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Probe {
+    /// Nothing measured (start-up, printing).
+    Untracked = 0,
+    /// Synthesising the golden input (not part of the pipeline's cost).
+    Input = 1,
+    /// Pipeline work outside the named stages: front end, bookkeeping, output sink.
+    PipelineOther = 2,
+    /// Windowed real FFTs of every microphone.
+    Fft = 3,
+    /// PHAT-weighted cross spectra of every pair (with band mask and averaging).
+    Phat = 4,
+    /// Inverse transforms and the lag search with sub-sample refinement.
+    Inverse = 5,
+    /// Direction-of-arrival fit.
+    Doa = 6,
+    /// Spectral path: decimation, long FFT, BPF peak picking.
+    Bpf = 7,
+    /// Reference figure: one microfft `rfft_1024`.
+    ReferenceRfft = 8,
+    /// Encoding outputs into wire frames.
+    Encode = 9,
+    /// Writes the totals of the section that ends here.
+    Dump = 15,
+}
+
+/// Number of probe slots (ids `0..SLOTS`).
+pub const SLOTS: usize = 16;
+
+impl Probe {
+    /// Every probe, in id order.
+    pub const ALL: [Probe; 11] = [
+        Probe::Untracked,
+        Probe::Input,
+        Probe::PipelineOther,
+        Probe::Fft,
+        Probe::Phat,
+        Probe::Inverse,
+        Probe::Doa,
+        Probe::Bpf,
+        Probe::ReferenceRfft,
+        Probe::Encode,
+        Probe::Dump,
+    ];
+
+    /// The probe's slot id.
+    pub const fn id(self) -> usize {
+        self as usize
+    }
+
+    /// The probe with slot `id`, if any.
+    pub fn from_id(id: usize) -> Option<Probe> {
+        Probe::ALL.into_iter().find(|p| p.id() == id)
+    }
+
+    /// Short lower-case name, used in budget names.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Probe::Untracked => "untracked",
+            Probe::Input => "input",
+            Probe::PipelineOther => "other",
+            Probe::Fft => "fft",
+            Probe::Phat => "phat",
+            Probe::Inverse => "inverse",
+            Probe::Doa => "doa",
+            Probe::Bpf => "bpf",
+            Probe::ReferenceRfft => "rfft1024",
+            Probe::Encode => "encode",
+            Probe::Dump => "dump",
+        }
+    }
+
+    /// Whether the instructions charged to this probe are the pipeline's.
+    pub const fn is_pipeline(self) -> bool {
+        matches!(
+            self,
+            Probe::PipelineOther
+                | Probe::Fft
+                | Probe::Phat
+                | Probe::Inverse
+                | Probe::Doa
+                | Probe::Bpf
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ids_are_distinct_fit_the_table_and_round_trip() {
+        for (i, p) in Probe::ALL.iter().enumerate() {
+            assert!(p.id() < SLOTS);
+            assert_eq!(Probe::from_id(p.id()), Some(*p));
+            for q in &Probe::ALL[..i] {
+                assert_ne!(p.id(), q.id());
+                assert_ne!(p.name(), q.name());
+            }
+        }
+        assert_eq!(Probe::from_id(SLOTS - 2), None);
+    }
+}

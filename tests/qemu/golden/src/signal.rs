@@ -1,0 +1,131 @@
+//! Deterministic synthetic array input: a harmonic drone-like tone arriving with a fixed integer
+//! sample delay per microphone, plus white noise, as interleaved TDM words.
+//!
+//! Integer arithmetic only, so host and target produce the same words by construction.
+
+/// Most microphones (TDM slots carrying a signal).
+pub const MAX_MICS: usize = 8;
+
+/// Harmonics of the tone: frequency in millihertz and amplitude in 24-bit sample units.
+/// A 3-blade propeller at 110 Hz rotation: BPF 330 Hz and its harmonics.
+const HARMONICS: [(u64, i64); 4] =
+    [(330_000, 1_200_000), (660_000, 700_000), (990_000, 400_000), (1_320_000, 250_000)];
+
+/// Peak amplitude of the white noise, 24-bit sample units.
+const NOISE_AMPLITUDE: i32 = 60_000;
+
+/// Generator of interleaved TDM words (slot-major frames of `tdm_slots` words; slot `i` carries
+/// microphone `i` as a 24-bit sample left-justified in an `i32`; unused slots are zero).
+#[derive(Debug, Clone)]
+pub struct Signal {
+    /// Per-microphone delay of the tone, samples (non-negative).
+    delays: [u32; MAX_MICS],
+    mics: usize,
+    tdm_slots: usize,
+    /// Phase increment per sample of each harmonic, 2^32 = one turn.
+    increments: [u32; HARMONICS.len()],
+    /// Index of the next sample (frame) to produce.
+    sample: u64,
+    noise: u32,
+}
+
+impl Signal {
+    /// A tone sampled at `sample_rate_hz`, delayed by `delays[i]` samples at microphone `i`
+    /// (`delays.len()` microphones, at most `tdm_slots` and [`MAX_MICS`]), noise from `seed`.
+    ///
+    /// # Panics
+    /// If there are more delays than slots or than [`MAX_MICS`], or `sample_rate_hz` is zero
+    /// (a bug in the calling check, not bad data).
+    pub fn new(delays: &[u32], tdm_slots: usize, sample_rate_hz: u32, seed: u32) -> Self {
+        assert!(delays.len() <= tdm_slots.min(MAX_MICS) && sample_rate_hz > 0);
+        let mut d = [0; MAX_MICS];
+        d[..delays.len()].copy_from_slice(delays);
+        let increments = HARMONICS.map(|(millihertz, _)| {
+            ((millihertz << 32) / (u64::from(sample_rate_hz) * 1000)) as u32
+        });
+        Signal { delays: d, mics: delays.len(), tdm_slots, increments, sample: 0, noise: seed | 1 }
+    }
+
+    /// Index of the next frame [`Signal::fill`] writes.
+    pub fn sample_index(&self) -> u64 {
+        self.sample
+    }
+
+    /// Fills `words` with the next `words.len() / tdm_slots` frames (a trailing partial frame is
+    /// left zero and not counted).
+    pub fn fill(&mut self, words: &mut [i32]) {
+        words.fill(0);
+        for frame in words.chunks_exact_mut(self.tdm_slots) {
+            for (mic, word) in frame.iter_mut().take(self.mics).enumerate() {
+                let t = self.sample.wrapping_sub(u64::from(self.delays[mic])) as u32;
+                let mut sample: i64 = 0;
+                for (&(_, amplitude), &increment) in HARMONICS.iter().zip(&self.increments) {
+                    sample += (amplitude * i64::from(sine_q15(t.wrapping_mul(increment)))) >> 15;
+                }
+                let noise = (self.next_noise() >> 8) as i32 % NOISE_AMPLITUDE;
+                let sample = (sample as i32 + noise).clamp(-(1 << 23), (1 << 23) - 1);
+                *word = sample << 8;
+            }
+            self.sample += 1;
+        }
+    }
+
+    /// xorshift32.
+    fn next_noise(&mut self) -> u32 {
+        let mut x = self.noise;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        self.noise = x;
+        x
+    }
+}
+
+/// Sine of `phase` (2^32 = one turn) in Q15, integer only: the parabola 4x(1 − |x|) with the
+/// usual 0.225 correction; within 0.1 % of full scale of `sin`.
+pub fn sine_q15(phase: u32) -> i32 {
+    // x in [-1, 1) as Q15, for the angle in [-π, π).
+    let x = (phase as i32) >> 16;
+    let y = (x * (32_768 - x.abs())) >> 13; // Q15, in [-32768, 32768]
+                                            // y + 0.225 (y|y| − y), 0.225 ≈ 7373 / 2^15
+    y + ((7_373 * (((y * y.abs()) >> 15) - y)) >> 15)
+}
+
+/// Integer arrival delays (samples, the earliest microphone at zero) of a far-field plane wave
+/// travelling along −`direction_q15` (the unit vector towards the source, x and y in Q15), for
+/// microphones at `positions_mm` (millimetres, array frame), speed of sound 343 m/s.
+///
+/// Writes `positions_mm.len().min(delays.len())` delays.
+pub fn plane_wave_delays(
+    positions_mm: &[[i32; 2]],
+    direction_q15: [i32; 2],
+    sample_rate_hz: u32,
+    delays: &mut [u32],
+) {
+    // Arrival at p relative to the centre: −(p · u) / c seconds; in samples, rounded half up.
+    let denominator = (1i64 << 15) * 1000 * 343;
+    let arrival = |p: &[i32; 2]| {
+        let dot = i64::from(p[0]) * i64::from(direction_q15[0])
+            + i64::from(p[1]) * i64::from(direction_q15[1]);
+        (-2 * dot * i64::from(sample_rate_hz) + denominator).div_euclid(2 * denominator)
+    };
+    let earliest = positions_mm.iter().map(arrival).min().unwrap_or(0);
+    for (p, d) in positions_mm.iter().zip(delays.iter_mut()) {
+        *d = (arrival(p) - earliest) as u32;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn integer_sine_stays_close_to_sine() {
+        for k in 0..4096u32 {
+            let phase = k << 20;
+            let exact = (f64::from(phase) / 4_294_967_296.0 * core::f64::consts::TAU).sin();
+            let error = (f64::from(sine_q15(phase)) / 32_768.0 - exact).abs();
+            assert!(error < 2e-3, "phase {phase}: error {error}");
+        }
+    }
+}
