@@ -43,6 +43,18 @@ pub fn accumulate_cross(acc: &mut [Complex32], ui: &[f32], uj: &[f32]) {
     }
 }
 
+/// Weights each averaged PHAT bin by its magnitude coherence |G(k)| / blocks (0–1): bins whose
+/// phase wandered from block to block (noise) count less than bins with a steady phase.
+/// The result keeps the scale of `g` (a fully coherent bin is unchanged).
+pub fn weight_by_coherence(g: &mut [Complex32], blocks: u32) {
+    let inv = 1.0 / blocks.max(1) as f32;
+    for x in g {
+        let m = libm::sqrtf(x.re * x.re + x.im * x.im) * inv;
+        x.re *= m;
+        x.im *= m;
+    }
+}
+
 /// A pair delay estimate.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DelayEstimate {
