@@ -1,0 +1,160 @@
+//! aim-dsp outputs to frames (feature `dsp`).
+//!
+//! The firmware and the simulator both turn [`aim_dsp::Output`]s into frames through these
+//! functions, so a simulated array sends the very bytes a real one would.
+//!
+//! ```
+//! use aim_wire::{from_dsp, Encoder, MAX_ENCODED_LEN};
+//! let out = aim_dsp::Output::Doa(aim_dsp::Doa { azimuth_rad: 0.5, quality: 0.9, ..Default::default() });
+//! let mut encoder = Encoder::new(1);
+//! let mut buf = [0u8; MAX_ENCODED_LEN];
+//! let n = from_dsp::encode_output(&mut encoder, &out, &from_dsp::FirmwareCounters::default(), &mut buf)
+//!     .unwrap();
+//! assert!(n > 0);
+//! ```
+
+use crate::frame::{Body, Doa, Health, Hello, Peak, Peaks, MAX_PEAKS};
+use crate::{fixed, EncodeError, Encoder};
+
+/// What the firmware knows and the DSP does not; goes into [`Health`] frames. All zero in
+/// simulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FirmwareCounters {
+    /// CPU cycles spent on the last block.
+    pub cycles_per_block: u32,
+    /// Audio DMA overruns since start-up.
+    pub dma_overruns: u32,
+    /// Frames dropped since start-up because the uplink queue was full.
+    pub dropped_frames: u32,
+    /// Frames waiting in the uplink queue.
+    pub queue_depth: u8,
+}
+
+/// The `Hello` of an array running `config`.
+pub fn hello(config: &aim_dsp::Config, firmware_version: [u8; 3]) -> Hello {
+    Hello::new(
+        firmware_version,
+        config.sample_rate_hz,
+        u16::try_from(config.block_len).unwrap_or(u16::MAX),
+        config.geometry.positions(),
+    )
+}
+
+/// A DoA estimate at 0.01° resolution.
+pub fn doa(d: &aim_dsp::Doa) -> Doa {
+    Doa {
+        span_samples: d.span_samples,
+        pairs_used: d.pairs_used,
+        ..Doa::new(d.azimuth_rad, d.zenith_rad, d.residual, d.quality)
+    }
+}
+
+/// Amplitude as a fraction of full scale to dBFS; zero or less (silence) gives `-inf`, which
+/// quantises to the field's minimum.
+fn dbfs(fraction: f32) -> f32 {
+    if fraction > 0.0 {
+        20.0 * libm::log10f(fraction)
+    } else {
+        f32::NEG_INFINITY
+    }
+}
+
+/// BPF peak groups at 0.01 Hz and 0.1 dB resolution (at most `count`, at most [`MAX_PEAKS`]).
+pub fn peaks(p: &aim_dsp::Peaks) -> Peaks {
+    let mut list = heapless::Vec::new();
+    for q in p.peaks.iter().take(usize::from(p.count).min(MAX_PEAKS)) {
+        // Cannot fail: at most MAX_PEAKS are taken.
+        let _ = list.push(Peak::new(q.hz, dbfs(q.amplitude), q.harmonicity));
+    }
+    Peaks { span_samples: p.span_samples, bpf_chz: fixed::to_u32(p.bpf_hz, 100.0), peaks: list }
+}
+
+/// DSP health and firmware counters together.
+pub fn health(h: &aim_dsp::Health, firmware: &FirmwareCounters) -> Health {
+    Health {
+        blocks: h.blocks,
+        clipped_samples: h.clipped_samples,
+        peak_ddbfs: fixed::to_i16(h.peak_dbfs, 10.0),
+        block_exponent: h.block_exponent,
+        cycles_per_block: firmware.cycles_per_block,
+        dma_overruns: firmware.dma_overruns,
+        dropped_frames: firmware.dropped_frames,
+        queue_depth: firmware.queue_depth,
+    }
+}
+
+/// The frame body and sample index of one pipeline output.
+pub fn body(output: &aim_dsp::Output, firmware: &FirmwareCounters) -> (u64, Body) {
+    match output {
+        aim_dsp::Output::Doa(d) => (d.sample_index, Body::Doa(doa(d))),
+        aim_dsp::Output::Peaks(p) => (p.sample_index, Body::Peaks(peaks(p))),
+        aim_dsp::Output::Health(h) => (h.sample_index, Body::Health(health(h, firmware))),
+    }
+}
+
+/// Encodes one pipeline output with the encoder's next sequence number into `out`; returns the
+/// bytes written.
+pub fn encode_output(
+    encoder: &mut Encoder,
+    output: &aim_dsp::Output,
+    firmware: &FirmwareCounters,
+    out: &mut [u8],
+) -> Result<usize, EncodeError> {
+    let (sample_index, body) = body(output, firmware);
+    encoder.encode(sample_index, body, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn doa_fields_map_with_their_units() {
+        let d = aim_dsp::Doa {
+            sample_index: 4096,
+            span_samples: 4096,
+            azimuth_rad: -1.0,
+            zenith_rad: 0.5,
+            residual: 0.37,
+            quality: 0.66,
+            pairs_used: 15,
+        };
+        let w = doa(&d);
+        assert_eq!(w.azimuth_cdeg, -5730); // -57.2958°
+        assert_eq!(w.zenith_cdeg, 2865); // 28.6479°
+        assert_eq!(w.residual_csamples, 37);
+        assert_eq!(w.quality, 168); // 0.66 * 255 = 168.3
+        assert_eq!((w.span_samples, w.pairs_used), (4096, 15));
+        assert_eq!(body(&aim_dsp::Output::Doa(d), &FirmwareCounters::default()).0, 4096);
+    }
+
+    #[test]
+    fn peaks_amplitude_becomes_dbfs() {
+        let mut p = aim_dsp::Peaks {
+            sample_index: 0,
+            span_samples: 24_576,
+            bpf_hz: 187.5,
+            count: 2,
+            peaks: [aim_dsp::Peak::default(); 4],
+        };
+        p.peaks[0] = aim_dsp::Peak { hz: 187.5, amplitude: 0.1, harmonicity: 0.75 };
+        p.peaks[1] = aim_dsp::Peak { hz: 250.0, amplitude: 0.0, harmonicity: 0.5 };
+        p.peaks[2] = aim_dsp::Peak { hz: 999.0, amplitude: 0.5, harmonicity: 1.0 };
+        let w = peaks(&p);
+        assert_eq!(w.bpf_chz, 18_750);
+        assert_eq!(w.peaks.len(), 2, "entries past count are not sent");
+        assert_eq!(w.peaks[0].amplitude_ddb, -200); // 0.1 of full scale = -20 dBFS
+        assert_eq!(w.peaks[0].harmonicity, 191); // 0.75 * 255 = 191.25
+        assert_eq!(w.peaks[1].amplitude_ddb, i16::MIN, "silence");
+        assert_eq!(w.span_samples, 24_576);
+    }
+
+    #[test]
+    fn hello_carries_the_geometry() {
+        let config = aim_dsp::Config::new(aim_dsp::Geometry::respeaker_6mic(), 48_000);
+        let h = hello(&config, [1, 2, 3]);
+        assert_eq!(h.mic_positions_decimm.len(), 6);
+        assert_eq!(h.mic_positions_decimm[0], [463, 0]); // 0.0463 m on +x
+        assert_eq!((h.sample_rate_hz, h.block_len), (48_000, 1024));
+    }
+}

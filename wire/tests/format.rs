@@ -1,0 +1,326 @@
+//! The format itself: pinned discriminants, worst-case sizes, golden bytes, compatibility rules.
+
+mod common;
+
+use aim_wire::{
+    decode, reserved, Body, DecodeError, Deframer, Frame, Kind, LinkStats, MAX_ENCODED_LEN,
+    MAX_RAW_LEN, PROTOCOL_VERSION,
+};
+use common::{raw, reframe, sample_frames, strip_crc, wire, worst_case};
+use proptest::prelude::*;
+use std::f32::consts::PI;
+
+#[test]
+fn discriminants_are_pinned() {
+    // These bytes are on the wire of every recording ever made: never change them.
+    assert_eq!(Kind::Hello as u8, 0);
+    assert_eq!(Kind::Doa as u8, 1);
+    assert_eq!(Kind::Peaks as u8, 2);
+    assert_eq!(Kind::Health as u8, 3);
+    assert_eq!(reserved::MFCC, 4);
+    assert_eq!(reserved::BEACON, 5);
+    assert_eq!(reserved::SNIPPET, 6);
+    assert_eq!(aim_wire::MAGIC, 0xA1);
+    assert_eq!(PROTOCOL_VERSION, 1);
+    for kind in Kind::ALL {
+        assert_eq!(Kind::from_byte(kind.byte()), Some(kind));
+    }
+    for byte in [reserved::MFCC, reserved::BEACON, reserved::SNIPPET, 7, 255] {
+        assert_eq!(Kind::from_byte(byte), None);
+    }
+    // The kind byte sits at offset 2 of every raw frame.
+    for frame in sample_frames() {
+        assert_eq!(raw(&frame)[2], frame.body.kind() as u8);
+    }
+}
+
+#[test]
+fn max_encoded_size_per_kind() {
+    // Declared worst cases (computed by hand in `Kind::max_payload_len`) against real encodings
+    // of frames with every varint at its widest.
+    let expected =
+        [(Kind::Hello, 80, 83), (Kind::Doa, 36, 39), (Kind::Peaks, 67, 70), (Kind::Health, 50, 53)];
+    for (kind, raw_len, wire_len) in expected {
+        let frame = worst_case(kind);
+        assert_eq!(raw(&frame).len(), raw_len, "{kind:?} raw");
+        assert_eq!(wire(&frame).len(), wire_len, "{kind:?} on the wire");
+        assert_eq!(kind.max_raw_len(), raw_len, "{kind:?} declared raw");
+        assert_eq!(kind.max_encoded_len(), wire_len, "{kind:?} declared wire");
+    }
+    assert_eq!(MAX_RAW_LEN, 80);
+    assert_eq!(MAX_ENCODED_LEN, 83);
+}
+
+const GOLDEN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden");
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" ")
+}
+
+fn unhex(text: &str) -> Vec<u8> {
+    text.split_whitespace()
+        .map(|h| u8::from_str_radix(h, 16).expect("golden file holds hex bytes"))
+        .collect()
+}
+
+#[test]
+fn golden_bytes_of_every_kind() {
+    // `AIM_WIRE_BLESS=1 cargo test -p aim-wire --test format` rewrites the snapshots.
+    let bless = std::env::var_os("AIM_WIRE_BLESS").is_some();
+    let frames: Vec<Frame> =
+        sample_frames().into_iter().chain(Kind::ALL.iter().map(|&k| worst_case(k))).collect();
+    let mut seen = Vec::new();
+    for frame in frames {
+        let kind = frame.body.kind();
+        let variant = if frame.header.seq == u16::MAX { "max" } else { "sample" };
+        let path = format!("{GOLDEN_DIR}/{}-{variant}.hex", kind.name());
+        let bytes = wire(&frame);
+        if bless {
+            std::fs::write(&path, hex(&bytes) + "\n").unwrap();
+        }
+        let golden = std::fs::read_to_string(&path)
+            .unwrap_or_else(|e| panic!("{path}: {e} (AIM_WIRE_BLESS=1 writes it)"));
+        assert_eq!(hex(&bytes), golden.trim(), "{path} differs from the encoder");
+        // And the snapshot decodes to the frame: old bytes stay readable.
+        let mut deframer: Deframer = Deframer::new();
+        let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+        assert_eq!(decoded, [Ok(frame)], "{path}");
+        seen.push(kind);
+    }
+    for kind in Kind::ALL {
+        assert!(seen.contains(&kind), "no golden snapshot of {kind:?}");
+    }
+}
+
+#[test]
+fn golden_doa_bytes_by_hand() {
+    // One frame spelled out byte by byte, so the format description in the crate docs is
+    // checked against something a person wrote, not only against the encoder's past output.
+    let frame = &sample_frames()[1];
+    let mut expected = vec![
+        0xA1, 0x01, 0x01, 0x03, // magic, version, kind Doa, array 3
+        0x01, 0x00, // seq 1, little-endian
+        0x80, 0xC0, 0xBB, 0x01, // sample index 3 072 000 as LEB128
+        0x80, 0x20, // span 4096 samples
+        0xA8, 0x46, // azimuth 45.00° = 4500 cdeg, zig-zag 9000
+        0xF0, 0x2E, // zenith 60.00° = 6000 cdeg
+        0x0C, // residual 0.12 samples = 12
+        0xDE, // quality 0.87 * 255 = 221.85 -> 222
+        0x0F, // 15 pairs used
+    ];
+    let crc = aim_wire::crc32(&expected);
+    expected.extend_from_slice(&crc.to_le_bytes());
+    assert_eq!(raw(frame), expected);
+}
+
+fn deframe_all(stream: &[u8]) -> (Vec<Result<Frame, DecodeError>>, LinkStats) {
+    let mut deframer: Deframer = Deframer::new();
+    let out = deframer.feed(stream).collect();
+    deframer.finish();
+    (out, *deframer.stats())
+}
+
+#[test]
+fn unknown_kind_is_skipped_and_counted() {
+    // A newer firmware sends a Snippet (kind 6) between two known frames.
+    let frames = sample_frames();
+    let mut snippet = strip_crc(&raw(&frames[1])).to_vec();
+    snippet[2] = reserved::SNIPPET;
+    snippet[4] = 2; // its own sequence number, between the two neighbours
+    snippet.extend_from_slice(&[0xAB; 40]);
+    let mut before = frames[0].clone();
+    before.header.seq = 1;
+    let mut after = frames[3].clone();
+    after.header.seq = 3;
+    let stream = [wire(&before), reframe(&snippet), wire(&after)].concat();
+    let (out, stats) = deframe_all(&stream);
+    assert_eq!(out, [Ok(before), Err(DecodeError::UnknownKind(reserved::SNIPPET)), Ok(after)]);
+    assert_eq!(stats.unknown_kinds, 1);
+    assert_eq!(stats.crc_errors, 0);
+    // Its sequence number counted: no gap reported.
+    assert_eq!(stats.seq_gaps, 0);
+    assert_eq!(stats.frames, 2);
+}
+
+#[test]
+fn unknown_version_is_skipped_and_counted() {
+    let frames = sample_frames();
+    let mut v2 = strip_crc(&raw(&frames[1])).to_vec();
+    v2[1] = PROTOCOL_VERSION + 1;
+    let stream = [reframe(&v2), wire(&frames[2])].concat();
+    let (out, stats) = deframe_all(&stream);
+    assert_eq!(
+        out,
+        [Err(DecodeError::UnknownVersion(PROTOCOL_VERSION + 1)), Ok(frames[2].clone())]
+    );
+    assert_eq!((stats.unknown_versions, stats.crc_errors), (1, 0));
+}
+
+#[test]
+fn appended_payload_fields_are_ignored() {
+    // Rule 3: a later firmware appends fields; this version reads the prefix it knows.
+    for frame in sample_frames() {
+        let mut longer = strip_crc(&raw(&frame)).to_vec();
+        longer.extend_from_slice(&[0x05, 0x7F, 0x00, 0x01]);
+        let (out, _) = deframe_all(&reframe(&longer));
+        assert_eq!(out, [Ok(frame)]);
+    }
+}
+
+#[test]
+fn truncated_payload_is_malformed_not_a_crash() {
+    let frame = &sample_frames()[2];
+    let body = strip_crc(&raw(frame)).to_vec();
+    let cut = &body[..body.len() - 3];
+    let (out, stats) = deframe_all(&reframe(cut));
+    assert_eq!(out, [Err(DecodeError::Payload(Some(Kind::Peaks)))]);
+    assert_eq!(stats.malformed, 1);
+}
+
+#[test]
+fn bad_magic_with_valid_crc_is_malformed() {
+    let mut body = strip_crc(&raw(&sample_frames()[1])).to_vec();
+    body[0] = 0x7E;
+    let (out, stats) = deframe_all(&reframe(&body));
+    assert_eq!(out, [Err(DecodeError::BadMagic(0x7E))]);
+    assert_eq!(stats.malformed, 1);
+}
+
+#[test]
+fn too_many_peaks_do_not_decode() {
+    // A count above MAX_PEAKS must fail cleanly, not overflow the fixed-capacity list.
+    let frame = &sample_frames()[2];
+    let body = strip_crc(&raw(frame)).to_vec();
+    let header_len = 6 + 4; // fixed header + 4-byte sample index of this frame
+    let mut payload = body[header_len..].to_vec();
+    let count_at = 6; // after span 24 576 and BPF 18 742, 3-byte varints both
+    assert_eq!(payload[count_at], 3);
+    payload[count_at] = 5;
+    payload.extend_from_within(count_at + 1..);
+    let forged = [&body[..header_len], &payload[..]].concat();
+    let (out, _) = deframe_all(&reframe(&forged));
+    assert_eq!(out, [Err(DecodeError::Payload(Some(Kind::Peaks)))]);
+}
+
+#[test]
+fn sequence_gaps_and_resets_are_counted() {
+    let frames = sample_frames();
+    let mut stream = Vec::new();
+    for (i, seq) in [10u16, 11, 14, 15, 0, 1, 65535, 0].into_iter().enumerate() {
+        let mut f = frames[i % frames.len()].clone();
+        f.header.seq = seq;
+        stream.extend(wire(&f));
+    }
+    let (_, stats) = deframe_all(&stream);
+    // 11 -> 14 misses two; 15 -> 0 is a restart; 1 -> 65535 goes backwards; 65535 -> 0 wraps.
+    assert_eq!(stats.seq_gaps, 1);
+    assert_eq!(stats.frames_missed, 2);
+    assert_eq!(stats.seq_resets, 2);
+    assert_eq!(stats.frames, 8);
+}
+
+#[test]
+fn oversize_chunk_is_counted_and_the_next_frame_survives() {
+    let frame = sample_frames()[1].clone();
+    let mut stream = vec![0x55; 3000];
+    stream.extend(wire(&frame));
+    let (out, stats) = deframe_all(&stream);
+    assert_eq!(out, [Err(DecodeError::Oversize), Ok(frame)]);
+    assert_eq!(stats.oversize, 1);
+    // A small deframer counts the frame itself as oversize.
+    let mut small: Deframer<16> = Deframer::new();
+    let out: Vec<_> = small.feed(&wire(&sample_frames()[0])).collect();
+    assert_eq!(out, [Err(DecodeError::Oversize)]);
+}
+
+#[test]
+fn stream_cut_inside_a_frame_counts_as_truncated() {
+    let w = wire(&sample_frames()[3]);
+    let (out, stats) = deframe_all(&w[..w.len() / 2]);
+    assert!(out.is_empty());
+    assert_eq!(stats.truncated, 1);
+}
+
+#[test]
+fn encoder_numbers_frames_and_refuses_small_buffers() {
+    let mut encoder = aim_wire::Encoder::new(9);
+    let body = sample_frames()[1].body.clone();
+    let mut buf = [0u8; MAX_ENCODED_LEN];
+    let mut small = [0u8; 8];
+    assert!(matches!(
+        encoder.encode(5, body.clone(), &mut small),
+        Err(aim_wire::EncodeError::BufferTooSmall { available: 8, .. })
+    ));
+    let mut stream = Vec::new();
+    for i in 0..3u64 {
+        let n = encoder.encode(i * 1024, body.clone(), &mut buf).unwrap();
+        stream.extend_from_slice(&buf[..n]);
+    }
+    let (out, stats) = deframe_all(&stream);
+    let seqs: Vec<_> = out.iter().map(|r| r.as_ref().unwrap().header.seq).collect();
+    assert_eq!(seqs, [0, 1, 2], "the failed encode consumed no sequence number");
+    assert!(out.iter().all(|r| r.as_ref().unwrap().header.array_id == 9));
+    assert_eq!(stats.seq_gaps, 0);
+}
+
+#[test]
+fn quantisation_resolution() {
+    // Each field is within half a unit of the physical value it was made from.
+    let doa = aim_wire::Doa::new(-2.5, 0.3, 1.234, 0.5);
+    assert!((doa.azimuth_rad() - -2.5).abs() <= 0.005f32.to_radians() + 1e-6);
+    assert!((doa.zenith_rad() - 0.3).abs() <= 0.005f32.to_radians() + 1e-6);
+    assert!((doa.residual_samples() - 1.234).abs() <= 0.005 + 1e-6);
+    assert!((doa.quality() - 0.5).abs() <= 0.5 / 255.0 + 1e-6);
+    // Azimuth beyond ±π wraps instead of saturating.
+    let wrapped = aim_wire::Doa::new(3.5, 0.0, 0.0, 0.0);
+    assert!((wrapped.azimuth_rad() - (3.5 - std::f32::consts::TAU)).abs() < 1e-3);
+    let peak = aim_wire::Peak::new(187.426, -12.34, 0.25);
+    assert_eq!((peak.freq_chz, peak.amplitude_ddb, peak.harmonicity), (18743, -123, 64));
+}
+
+fn arb_frame() -> impl Strategy<Value = Frame> {
+    (any::<u64>(), any::<u8>(), any::<u16>()).prop_map(|(seed, array_id, seq)| {
+        common::random_frame(&mut common::Rng::new(seed), array_id, seq)
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 4096, ..ProptestConfig::default() })]
+
+    #[test]
+    fn every_frame_roundtrips_within_its_size(frame in arb_frame()) {
+        let bytes = wire(&frame);
+        prop_assert!(bytes.len() <= frame.body.kind().max_encoded_len());
+        prop_assert_eq!(bytes[0], 0);
+        prop_assert_eq!(*bytes.last().unwrap(), 0);
+        prop_assert!(!bytes[1..bytes.len() - 1].contains(&0));
+        let inner = &raw(&frame);
+        prop_assert_eq!(decode(inner), Ok(frame));
+    }
+
+    #[test]
+    fn doa_quantisation_is_within_half_a_unit(
+        az in -PI..PI, zen in 0.0f32..PI, res in 0.0f32..600.0, q in 0.0f32..1.0
+    ) {
+        let doa = aim_wire::Doa::new(az, zen, res, q);
+        prop_assert!((doa.azimuth_deg() - az.to_degrees()).abs() <= 0.005 + 1e-3);
+        prop_assert!((doa.zenith_deg() - zen.to_degrees()).abs() <= 0.005 + 1e-3);
+        prop_assert!((doa.residual_samples() - res).abs() <= 0.005 + 1e-4 * res);
+        prop_assert!((doa.quality() - q).abs() <= 0.5 / 255.0 + 1e-6);
+    }
+}
+
+#[test]
+fn bodies_report_their_kind() {
+    for frame in sample_frames() {
+        let kind = frame.body.kind();
+        let matches = matches!(
+            (&frame.body, kind),
+            (Body::Hello(_), Kind::Hello)
+                | (Body::Doa(_), Kind::Doa)
+                | (Body::Peaks(_), Kind::Peaks)
+                | (Body::Health(_), Kind::Health)
+        );
+        assert!(matches, "{kind:?}");
+    }
+}
