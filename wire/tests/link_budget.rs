@@ -1,0 +1,77 @@
+//! Link utilisation of one 8-microphone array at 921 600 baud, from encoded frame sizes and the
+//! DSP's real output rates (read from aim-dsp's defaults, not restated here).
+//!
+//! `cargo test -p aim-wire --test link_budget -- --nocapture` prints the table that
+//! BENCHMARKS.md quotes.
+
+mod common;
+
+use aim_wire::Kind;
+use common::{wire, worst_case};
+
+/// Default uplink: USART3 at 921 600 baud, 8N1, so 10 bit times per byte.
+const BAUD: f64 = 921_600.0;
+const BITS_PER_BYTE: f64 = 10.0;
+/// The firmware repeats its `Hello` every 5 s (an assumption of this budget: the period is the
+/// firmware's choice, and anything slower only lowers the load).
+const HELLO_PERIOD_S: f64 = 5.0;
+/// Most the data may take, so that retransmit-free bursts, logs and later kinds still fit.
+const BUDGET: f64 = 0.5;
+
+/// Frames per second of each kind for a pipeline configuration.
+fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 4] {
+    let block_s = config.block_len as f64 / f64::from(config.sample_rate_hz);
+    let peaks_hop_s =
+        aim_dsp::bpf::ANALYSIS_HOP as f64 / f64::from(aim_dsp::bpf::DECIMATED_RATE_HZ);
+    [
+        (Kind::Hello, 1.0 / HELLO_PERIOD_S),
+        (Kind::Doa, 1.0 / (block_s * f64::from(config.average_blocks))),
+        (Kind::Peaks, 1.0 / peaks_hop_s),
+        (Kind::Health, 1.0 / (block_s * f64::from(config.health_interval_blocks))),
+    ]
+}
+
+/// Bytes per second on the wire when every frame has its worst-case size, and the table rows.
+fn load(config: &aim_dsp::Config, label: &str) -> f64 {
+    let mut bytes_per_s = 0.0;
+    println!("{label}:");
+    for (kind, rate) in rates(config) {
+        let size = wire(&worst_case(kind)).len();
+        assert_eq!(size, kind.max_encoded_len());
+        println!(
+            "  {:7} {:6.2}/s x {:3} B = {:8.1} B/s",
+            kind.name(),
+            rate,
+            size,
+            rate * size as f64
+        );
+        bytes_per_s += rate * size as f64;
+    }
+    let utilisation = bytes_per_s * BITS_PER_BYTE / BAUD;
+    println!("  total {bytes_per_s:.1} B/s = {:.2} % of {BAUD} baud", 100.0 * utilisation);
+    utilisation
+}
+
+#[test]
+fn eight_mics_at_default_rates_use_at_most_half_the_link() {
+    let config = aim_dsp::Config::new(aim_dsp::Geometry::circle_8mic(), 48_000);
+    assert_eq!(config.geometry.len(), 8);
+    let utilisation = load(&config, "aim-dsp defaults, 48 kHz, 8 mics, worst-case sizes");
+    assert!(utilisation <= BUDGET, "{:.1} % of the link", 100.0 * utilisation);
+    // Physical sanity of the rates read from aim-dsp: a DoA per few blocks, ~1 Health/s.
+    let [_, (_, doa), (_, peaks), (_, health)] = rates(&config);
+    assert!((1.0..=47.0).contains(&doa), "DoA rate {doa}");
+    assert!((0.5..=24.0).contains(&peaks), "Peaks rate {peaks}");
+    assert!((0.5..=2.0).contains(&health), "Health rate {health}");
+}
+
+#[test]
+fn even_one_doa_per_block_fits() {
+    // The densest configuration aim-dsp accepts at 48 kHz: no DoA averaging, Health per block.
+    let mut config = aim_dsp::Config::new(aim_dsp::Geometry::circle_8mic(), 48_000);
+    config.average_blocks = 1;
+    config.health_interval_blocks = 1;
+    config.validate().expect("aim-dsp accepts this configuration");
+    let utilisation = load(&config, "one DoA and one Health per 1024-sample block");
+    assert!(utilisation <= BUDGET, "{:.1} % of the link", 100.0 * utilisation);
+}
