@@ -20,11 +20,7 @@ fn deframe(rng: &mut Rng, stream: &[u8]) -> (Vec<Frame>, LinkStats) {
     while !rest.is_empty() {
         let n = 1 + rng.below(rest.len().min(64));
         let (now, later) = rest.split_at(n);
-        for outcome in deframer.feed(now) {
-            if let Ok(frame) = outcome {
-                frames.push(frame);
-            }
-        }
+        frames.extend(deframer.feed(now).flatten());
         rest = later;
     }
     deframer.finish();
@@ -96,12 +92,10 @@ fn a_million_random_and_mutated_inputs() {
                         touched[i] = true;
                     }
                 }
-                1 if at < stream.len() => {
-                    if stream[at].0 != 0 {
-                        stream[at].0 = 0;
-                        if let Some(i) = stream[at].1 {
-                            touched[i] = true;
-                        }
+                1 if at < stream.len() && stream[at].0 != 0 => {
+                    stream[at].0 = 0;
+                    if let Some(i) = stream[at].1 {
+                        touched[i] = true;
                     }
                 }
                 2 => {
