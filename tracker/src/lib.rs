@@ -1,1 +1,25 @@
-//! AIM host tracker (work in progress).
+//! AIM host tracker: from array frames (bearings and BPF peaks) to drone positions, with the
+//! method of ALGORITHMS.md §4–8 (single array).
+//!
+//! - [`observation`]: the plain inputs (bearings, BPF peaks);
+//! - [`iqr`], [`doa`]: IQR smoothing, DoA trend and the LoS decision per array;
+//! - [`motion`]: motion classes (paper Table I);
+//! - [`dynamics`]: thrust, hover self-calibration, accelerations and speeds;
+//! - [`filter`]: the paper's position-only Kalman filter and the `aim` EKF mixture;
+//! - [`tracker`]: the pipeline that runs them at a fixed output period;
+//! - [`profile`], [`site`]: drone profiles and site files (TOML).
+#![warn(missing_docs)]
+
+pub mod config;
+pub mod doa;
+pub mod dynamics;
+pub mod filter;
+pub mod iqr;
+pub mod linalg;
+pub mod motion;
+pub mod observation;
+pub mod profile;
+pub mod site;
+#[cfg(test)]
+mod testutil;
+pub mod tracker;

@@ -1,0 +1,74 @@
+//! Errors of TOML configuration files (drone profiles, site files), with file and line.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A configuration file that cannot be used: which file, which line (1-based, when known),
+/// and what is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigError {
+    /// The file (or a name such as `<string>` for text not read from a file).
+    pub path: PathBuf,
+    /// 1-based line of the offending item, if known.
+    pub line: Option<usize>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}:{}: {}", self.path.display(), line, self.message),
+            None => write!(f, "{}: {}", self.path.display(), self.message),
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// 1-based line number of a byte offset in `text`.
+pub fn line_of(text: &str, offset: usize) -> usize {
+    text.as_bytes()[..offset.min(text.len())].iter().filter(|&&b| b == b'\n').count() + 1
+}
+
+/// Parses TOML `text` (read from `path`) into `T`, turning syntax and type errors into a
+/// [`ConfigError`] with the line the parser points at.
+pub fn parse_toml<T: serde::de::DeserializeOwned>(
+    text: &str,
+    path: &Path,
+) -> Result<T, ConfigError> {
+    toml::from_str(text).map_err(|e: toml::de::Error| ConfigError {
+        path: path.to_path_buf(),
+        line: e.span().map(|s| line_of(text, s.start)),
+        message: e.message().trim().to_string(),
+    })
+}
+
+/// Reads a file to a string, with the path in the error.
+pub fn read_text(path: &Path) -> Result<String, ConfigError> {
+    std::fs::read_to_string(path).map_err(|e| ConfigError {
+        path: path.to_path_buf(),
+        line: None,
+        message: format!("cannot read: {e}"),
+    })
+}
+
+/// Checks a spanned number against a predicate, reporting its line when it fails.
+pub fn check(
+    value: &toml::Spanned<f64>,
+    ok: impl Fn(f64) -> bool,
+    what: &str,
+    text: &str,
+    path: &Path,
+) -> Result<f64, ConfigError> {
+    let v = *value.get_ref();
+    if v.is_finite() && ok(v) {
+        Ok(v)
+    } else {
+        Err(ConfigError {
+            path: path.to_path_buf(),
+            line: Some(line_of(text, value.span().start)),
+            message: format!("{what} (got {v})"),
+        })
+    }
+}

@@ -1,0 +1,262 @@
+//! Per-array DoA window: IQR smoothing, the motion trend and the line-of-sight decision
+//! (paper §V-B, ALGORITHMS.md §4 and §7).
+//!
+//! The paper asks one variance threshold two questions. Here they are separate:
+//! a moving drone makes a smooth *trend* in DoA (the slope of a local linear fit), a blocked
+//! line of sight makes *erratic residuals* around that fit, a poor DoA fit residual and low
+//! pair quality.
+
+use std::collections::VecDeque;
+
+use crate::iqr::iqr_inliers;
+use crate::observation::{wrap_pi, Bearing};
+
+/// Tunables of the DoA window.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DoaConfig {
+    /// Length of the sliding window, s.
+    pub window_s: f64,
+    /// Minimum inliers for a state.
+    pub min_points: usize,
+    /// Largest RMS angular residual around the local linear fit still called LoS, rad.
+    pub los_max_erratic_rad: f64,
+    /// Largest mean DoA fit residual (DSP units) still called LoS; `f64::INFINITY` disables it.
+    pub los_max_fit_residual: f64,
+    /// Smallest mean pair quality still called LoS; 0 disables it.
+    pub los_min_quality: f64,
+    /// Smallest fraction of IQR inliers still called LoS.
+    pub los_min_inlier_fraction: f64,
+    /// A DoA trend slower than this is "stable", rad/s.
+    pub moving_min_rate: f64,
+    /// ... and it must also exceed this many standard errors of the slope.
+    pub moving_min_sigmas: f64,
+}
+
+impl Default for DoaConfig {
+    fn default() -> Self {
+        Self {
+            window_s: 1.0,
+            min_points: 5,
+            los_max_erratic_rad: 3.0f64.to_radians(),
+            los_max_fit_residual: f64::INFINITY,
+            los_min_quality: 0.0,
+            los_min_inlier_fraction: 0.6,
+            moving_min_rate: 1.0f64.to_radians(),
+            moving_min_sigmas: 3.0,
+        }
+    }
+}
+
+/// What the window says at one instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DoaState {
+    /// Time the smoothed bearing refers to, s.
+    pub t: f64,
+    /// Smoothed azimuth (linear fit evaluated at `t`), rad.
+    pub azimuth_rad: f64,
+    /// Smoothed zenith, rad.
+    pub zenith_rad: f64,
+    /// Azimuth rate, rad/s.
+    pub azimuth_rate: f64,
+    /// Zenith rate, rad/s.
+    pub zenith_rate: f64,
+    /// Angular speed of the bearing's unit vector, rad/s.
+    pub angular_rate: f64,
+    /// Standard error of `angular_rate`, rad/s.
+    pub angular_rate_sigma: f64,
+    /// RMS angular residual of the inliers around the linear fit, rad.
+    pub erratic_rad: f64,
+    /// Mean DSP fit residual of the inliers.
+    pub fit_residual: f64,
+    /// Mean pair quality of the inliers.
+    pub quality: f64,
+    /// Fraction of the window's estimates the IQR rule kept.
+    pub inlier_fraction: f64,
+    /// Number of inliers.
+    pub inliers: usize,
+    /// Line-of-sight decision.
+    pub los: bool,
+    /// DoA-trend decision: the drone moves.
+    pub moving: bool,
+}
+
+/// A sliding window of one array's bearings.
+#[derive(Clone, Debug)]
+pub struct DoaWindow {
+    config: DoaConfig,
+    bearings: VecDeque<Bearing>,
+}
+
+/// Least-squares line through (t, y): returns (value at t_eval, slope, RMS residual, Σ(t − t̄)²).
+fn line_fit(t: &[f64], y: &[f64], t_eval: f64) -> (f64, f64, Vec<f64>, f64) {
+    let n = t.len() as f64;
+    let tm = t.iter().sum::<f64>() / n;
+    let ym = y.iter().sum::<f64>() / n;
+    let stt: f64 = t.iter().map(|ti| (ti - tm) * (ti - tm)).sum();
+    let sty: f64 = t.iter().zip(y).map(|(ti, yi)| (ti - tm) * (yi - ym)).sum();
+    let slope = if stt > 0.0 { sty / stt } else { 0.0 };
+    let residuals = t.iter().zip(y).map(|(ti, yi)| yi - (ym + slope * (ti - tm))).collect();
+    (ym + slope * (t_eval - tm), slope, residuals, stt)
+}
+
+impl DoaWindow {
+    /// An empty window.
+    pub fn new(config: DoaConfig) -> Self {
+        Self { config, bearings: VecDeque::new() }
+    }
+
+    /// The tunables.
+    pub fn config(&self) -> &DoaConfig {
+        &self.config
+    }
+
+    /// Adds a bearing (in time order) and forgets those older than the window.
+    pub fn push(&mut self, b: Bearing) {
+        if !(b.azimuth_rad.is_finite() && b.zenith_rad.is_finite() && b.t.is_finite()) {
+            return;
+        }
+        self.bearings.push_back(b);
+        while let Some(first) = self.bearings.front() {
+            if first.t < b.t - self.config.window_s {
+                self.bearings.pop_front();
+            } else {
+                break;
+            }
+        }
+    }
+
+    /// Time of the newest bearing, s.
+    pub fn latest_t(&self) -> Option<f64> {
+        self.bearings.back().map(|b| b.t)
+    }
+
+    /// The window's state evaluated at time `t` (normally the newest bearing's time), or
+    /// `None` with too few estimates.
+    pub fn state(&self, t: f64) -> Option<DoaState> {
+        let c = &self.config;
+        let pts: Vec<&Bearing> =
+            self.bearings.iter().filter(|b| b.t >= t - c.window_s && b.t <= t + 1e-9).collect();
+        if pts.len() < c.min_points {
+            return None;
+        }
+        // Unwrap azimuths around the newest one so the window never straddles ±π.
+        let reference = pts[pts.len() - 1].azimuth_rad;
+        let az: Vec<f64> =
+            pts.iter().map(|b| reference + wrap_pi(b.azimuth_rad - reference)).collect();
+        let zen: Vec<f64> = pts.iter().map(|b| b.zenith_rad).collect();
+        let ts: Vec<f64> = pts.iter().map(|b| b.t).collect();
+        // IQR on the values (the paper's rule), then again on the residuals of a line fit so a
+        // steady trend is not mistaken for a spread.
+        let (ia, iz) = (iqr_inliers(&az), iqr_inliers(&zen));
+        let mut keep: Vec<usize> = (0..pts.len()).filter(|&i| ia[i] && iz[i]).collect();
+        if keep.len() >= c.min_points {
+            let sel = |v: &[f64], k: &[usize]| k.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+            let (_, _, ra, _) = line_fit(&sel(&ts, &keep), &sel(&az, &keep), t);
+            let (_, _, rz, _) = line_fit(&sel(&ts, &keep), &sel(&zen, &keep), t);
+            let (ma, mz) = (iqr_inliers(&ra), iqr_inliers(&rz));
+            let second: Vec<usize> = keep
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| ma[*j] && mz[*j])
+                .map(|(_, &i)| i)
+                .collect();
+            if second.len() >= c.min_points {
+                keep = second;
+            }
+        }
+        if keep.len() < c.min_points {
+            keep = (0..pts.len()).collect();
+        }
+        let sel = |v: &[f64]| keep.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+        let tk = sel(&ts);
+        let (azimuth, az_rate, ra, stt) = line_fit(&tk, &sel(&az), t);
+        let (zenith, zen_rate, rz, _) = line_fit(&tk, &sel(&zen), t);
+        let zenith = zenith.clamp(0.0, std::f64::consts::PI);
+        let s = zenith.sin();
+        let n = keep.len() as f64;
+        let ss: f64 = ra.iter().zip(&rz).map(|(a, z)| (s * a).powi(2) + z * z).sum();
+        let erratic = (ss / n).sqrt();
+        let angular_rate = ((s * az_rate).powi(2) + zen_rate.powi(2)).sqrt();
+        // Standard error of a slope: σ / sqrt(Σ(t − t̄)²), σ per component ≈ erratic/√2.
+        let dof = (n - 2.0).max(1.0);
+        let sigma_component = (ss / (2.0 * dof)).sqrt();
+        let angular_rate_sigma =
+            if stt > 0.0 { sigma_component / stt.sqrt() } else { f64::INFINITY };
+        let fit_residual = keep.iter().map(|&i| pts[i].residual).sum::<f64>() / n;
+        let quality = keep.iter().map(|&i| pts[i].quality).sum::<f64>() / n;
+        let inlier_fraction = n / pts.len() as f64;
+        let los = erratic <= c.los_max_erratic_rad
+            && fit_residual <= c.los_max_fit_residual
+            && quality >= c.los_min_quality
+            && inlier_fraction >= c.los_min_inlier_fraction;
+        let moving = angular_rate > c.moving_min_rate
+            && angular_rate > c.moving_min_sigmas * angular_rate_sigma;
+        Some(DoaState {
+            t,
+            azimuth_rad: wrap_pi(azimuth),
+            zenith_rad: zenith,
+            azimuth_rate: az_rate,
+            zenith_rate: zen_rate,
+            angular_rate,
+            angular_rate_sigma,
+            erratic_rad: erratic,
+            fit_residual,
+            quality,
+            inlier_fraction,
+            inliers: keep.len(),
+            los,
+            moving,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testutil::Rng;
+
+    fn bearing(t: f64, az: f64, zen: f64) -> Bearing {
+        Bearing { t, array_id: 0, azimuth_rad: az, zenith_rad: zen, residual: 0.0, quality: 5.0 }
+    }
+
+    #[test]
+    fn trend_noise_and_outliers_are_told_apart() {
+        let mut rng = Rng::new(7);
+        let sigma = 0.5f64.to_radians();
+        // A steady trend of 5°/s in azimuth near ±π (wrap) with noise and 10 % wild outliers.
+        let mut w = DoaWindow::new(DoaConfig::default());
+        let rate = 5.0f64.to_radians();
+        for k in 0..50 {
+            let t = k as f64 * 0.02;
+            let mut az = 3.1 + rate * t + sigma * rng.normal();
+            if k % 10 == 3 {
+                az += 0.8;
+            }
+            w.push(bearing(t, wrap_pi(az), 1.2 + sigma * rng.normal()));
+        }
+        let s = w.state(0.98).unwrap();
+        assert!(s.moving && s.los, "{s:?}");
+        assert!((s.azimuth_rate - rate).abs() < 1.5f64.to_radians(), "{s:?}");
+        assert!(wrap_pi(s.azimuth_rad - (3.1 + rate * 0.98)).abs() < 1.0f64.to_radians(), "{s:?}");
+        assert!(s.inlier_fraction < 0.95 && s.inlier_fraction > 0.8, "{s:?}");
+
+        // Stationary source, same noise: stable and LoS.
+        let mut w = DoaWindow::new(DoaConfig::default());
+        for k in 0..50 {
+            w.push(bearing(
+                k as f64 * 0.02,
+                0.5 + sigma * rng.normal(),
+                1.2 + sigma * rng.normal(),
+            ));
+        }
+        let s = w.state(0.98).unwrap();
+        assert!(!s.moving && s.los, "{s:?}");
+
+        // Erratic bearings (a reflection that wanders by ±8°): NLoS.
+        let mut w = DoaWindow::new(DoaConfig::default());
+        for k in 0..50 {
+            w.push(bearing(k as f64 * 0.02, 0.5 + 0.14 * rng.normal(), 1.2 + 0.14 * rng.normal()));
+        }
+        assert!(!w.state(0.98).unwrap().los);
+    }
+}

@@ -1,0 +1,198 @@
+//! The project's filter: a Gaussian mixture of position–velocity EKFs (ALGORITHMS.md §8).
+//!
+//! With one array, range is observable only through motion: bearings give the direction, the
+//! DoA rate gives velocity *over range*, and the acoustic speed fixes the scale. The first
+//! bearing therefore spawns hypotheses spread geometrically along the ray; each is an EKF with
+//! bearing, speed and motion-class updates, weighted by its measurement likelihoods. The
+//! mixture's covariance (spread of hypotheses included) is reported honestly.
+
+use super::ekf::Ekf;
+use super::{max_range_in_room, world_direction, Estimate, Filter, Step};
+use crate::linalg::Mat;
+use crate::motion::MotionClass;
+
+/// Tunables of the mixture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AimConfig {
+    /// Nearest and farthest initial range hypotheses, m.
+    pub range_min_m: f64,
+    /// Farthest initial range hypothesis, m (capped by the room when known).
+    pub range_max_m: f64,
+    /// Number of initial range hypotheses.
+    pub hypotheses: usize,
+    /// Floor of the bearing noise, rad.
+    pub bearing_sigma_floor: f64,
+    /// White-acceleration density while moving along the class's axes, m²/s³.
+    pub q_moving: f64,
+    /// White-acceleration density otherwise, m²/s³.
+    pub q_still: f64,
+    /// Velocity noise of the motion-class pseudo-measurements, m/s.
+    pub pseudo_sigma: f64,
+    /// Hypotheses lighter than this fraction of the heaviest are dropped.
+    pub prune_ratio: f64,
+}
+
+impl Default for AimConfig {
+    fn default() -> Self {
+        Self {
+            range_min_m: 1.0,
+            range_max_m: 25.0,
+            hypotheses: 12,
+            bearing_sigma_floor: 0.6f64.to_radians(),
+            q_moving: 0.6,
+            q_still: 0.02,
+            pseudo_sigma: 0.1,
+            prune_ratio: 1e-4,
+        }
+    }
+}
+
+/// The mixture filter.
+#[derive(Clone, Debug, Default)]
+pub struct AimFilter {
+    config: AimConfig,
+    /// (log weight, filter) per hypothesis.
+    components: Vec<(f64, Ekf)>,
+}
+
+impl AimFilter {
+    /// A filter with explicit tunables.
+    pub fn new(config: AimConfig) -> Self {
+        Self { config, components: Vec::new() }
+    }
+
+    /// Number of live hypotheses.
+    pub fn hypotheses(&self) -> usize {
+        self.components.len()
+    }
+
+    fn initialise(&mut self, step: &Step) -> bool {
+        let Some(doa) = step.doa else { return false };
+        let c = &self.config;
+        let dir = world_direction(step.array, &doa);
+        let r_max = max_range_in_room(step.array.position, dir, step.room, c.range_max_m)
+            .max(c.range_min_m * 1.5);
+        let n = c.hypotheses.max(1);
+        let ratio = (r_max / c.range_min_m).powf(1.0 / (n.max(2) - 1) as f64);
+        self.components = (0..n)
+            .map(|k| {
+                let r = c.range_min_m * ratio.powi(k as i32);
+                let p = step.array.position;
+                let x = [p[0] + r * dir[0], p[1] + r * dir[1], p[2] + r * dir[2], 0.0, 0.0, 0.0];
+                // Along the ray: half the spacing to the neighbours; across: the bearing noise.
+                let along = r * (ratio - 1.0) * 0.5;
+                let across = r * 3.0f64.to_radians();
+                let mut cov = Mat::zeros(6, 6);
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let proj = dir[i] * dir[j];
+                        let eye = if i == j { 1.0 } else { 0.0 };
+                        cov[(i, j)] = along * along * proj + across * across * (eye - proj);
+                    }
+                    cov[(i + 3, i + 3)] = 0.5;
+                }
+                (-(n as f64).ln(), Ekf::new(x, cov.symmetrized()))
+            })
+            .collect();
+        true
+    }
+
+    fn estimate(&self) -> Estimate {
+        let ws: Vec<f64> = self.components.iter().map(|(lw, _)| lw.exp()).collect();
+        let total: f64 = ws.iter().sum();
+        let mut mean = [0.0; 6];
+        for (w, (_, f)) in ws.iter().zip(&self.components) {
+            for (m, x) in mean.iter_mut().zip(&f.x) {
+                *m += w / total * x;
+            }
+        }
+        let mut cov = Mat::zeros(3, 3);
+        for (w, (_, f)) in ws.iter().zip(&self.components) {
+            for i in 0..3 {
+                for j in 0..3 {
+                    let d = (f.x[i] - mean[i]) * (f.x[j] - mean[j]);
+                    cov[(i, j)] += w / total * (f.p[(i, j)] + d);
+                }
+            }
+        }
+        Estimate {
+            position: [mean[0], mean[1], mean[2]],
+            velocity: [mean[3], mean[4], mean[5]],
+            position_covariance: cov.symmetrized(),
+        }
+    }
+}
+
+impl Filter for AimFilter {
+    fn step(&mut self, step: &Step) -> Option<Estimate> {
+        if self.components.is_empty() {
+            if !self.initialise(step) {
+                return None;
+            }
+            return Some(self.estimate());
+        }
+        let c = self.config.clone();
+        let q = match step.motion {
+            MotionClass::Horizontal => [c.q_moving, c.q_moving, c.q_still],
+            MotionClass::Vertical => [c.q_still, c.q_still, c.q_moving],
+            MotionClass::Hover | MotionClass::Yaw => [c.q_still; 3],
+        };
+        let bearing = match (step.los, step.doa) {
+            (true, Some(d)) => {
+                let sigma = d.erratic_rad.max(c.bearing_sigma_floor);
+                Some((d.azimuth_rad, d.zenith_rad, sigma / d.zenith_rad.sin().max(0.05), sigma))
+            }
+            _ => None,
+        };
+        let s = step.speed;
+        let moving = matches!(step.motion, MotionClass::Horizontal | MotionClass::Vertical);
+        for (lw, f) in self.components.iter_mut() {
+            f.predict(step.dt, q);
+            let mut ll = 0.0;
+            match step.motion {
+                MotionClass::Hover | MotionClass::Yaw => {
+                    f.update_velocity(&[0, 1, 2], &[0.0, 0.0, 0.0], c.pseudo_sigma);
+                }
+                MotionClass::Vertical => {
+                    f.update_velocity(&[0, 1], &[0.0, 0.0], c.pseudo_sigma);
+                    ll += f
+                        .update_velocity(&[2], &[s.vertical], s.vertical_sigma.max(0.05))
+                        .unwrap_or(0.0);
+                }
+                MotionClass::Horizontal => {
+                    f.update_velocity(&[2], &[0.0], c.pseudo_sigma);
+                }
+            }
+            if let Some((az, zen, saz, szen)) = bearing {
+                // A still drone's bearing says nothing about range; its likelihood would only
+                // rank hypotheses by how process noise looks from the array, so it is not
+                // counted then.
+                let l = f.update_bearing(step.array, az, zen, saz, szen).unwrap_or(0.0);
+                if moving {
+                    ll += l;
+                }
+            }
+            if step.motion == MotionClass::Horizontal && s.horizontal > 0.1 {
+                ll += f
+                    .update_horizontal_speed(s.horizontal, s.horizontal_sigma.max(0.05))
+                    .unwrap_or(0.0);
+            }
+            if let Some(room) = step.room {
+                for i in 0..3 {
+                    f.x[i] = f.x[i].clamp(room.min[i], room.max[i]);
+                }
+            }
+            *lw += ll;
+        }
+        // Normalise and prune.
+        let best = self.components.iter().map(|(lw, _)| *lw).fold(f64::NEG_INFINITY, f64::max);
+        let keep = c.prune_ratio.ln();
+        self.components.retain(|(lw, _)| *lw - best >= keep);
+        let total =
+            self.components.iter().map(|(lw, _)| (lw - best).exp()).sum::<f64>().ln() + best;
+        for (lw, _) in self.components.iter_mut() {
+            *lw -= total;
+        }
+        Some(self.estimate())
+    }
+}

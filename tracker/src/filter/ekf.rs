@@ -1,0 +1,232 @@
+//! One extended Kalman filter on [x y z vx vy vz] (world ENU, m and m/s), white-acceleration
+//! process noise, Joseph-form updates that keep the covariance symmetric positive definite.
+
+use crate::linalg::Mat;
+use crate::observation::{angles_of, wrap_pi};
+use crate::site::ArrayPose;
+
+/// State and covariance of one constant-velocity EKF.
+#[derive(Clone, Debug)]
+pub struct Ekf {
+    /// State [x y z vx vy vz].
+    pub x: [f64; 6],
+    /// Covariance, 6×6.
+    pub p: Mat,
+}
+
+/// Which components of an innovation are angles (wrapped to (−π, π]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Residual {
+    /// Plain differences.
+    Linear,
+    /// The first component is an azimuth.
+    AzimuthFirst,
+}
+
+impl Ekf {
+    /// A filter at `x` with covariance `p`.
+    pub fn new(x: [f64; 6], p: Mat) -> Self {
+        Self { x, p }
+    }
+
+    /// Position.
+    pub fn position(&self) -> [f64; 3] {
+        [self.x[0], self.x[1], self.x[2]]
+    }
+
+    /// Velocity.
+    pub fn velocity(&self) -> [f64; 3] {
+        [self.x[3], self.x[4], self.x[5]]
+    }
+
+    /// Constant-velocity prediction over `dt` seconds with white-acceleration spectral
+    /// densities `q` (per axis, m²/s³).
+    pub fn predict(&mut self, dt: f64, q: [f64; 3]) {
+        if dt <= 0.0 {
+            return;
+        }
+        let mut f = Mat::identity(6);
+        for i in 0..3 {
+            f[(i, i + 3)] = dt;
+            self.x[i] += dt * self.x[i + 3];
+        }
+        let mut qm = Mat::zeros(6, 6);
+        for (i, qi) in q.iter().enumerate() {
+            qm[(i, i)] = qi * dt.powi(3) / 3.0;
+            qm[(i, i + 3)] = qi * dt.powi(2) / 2.0;
+            qm[(i + 3, i)] = qi * dt.powi(2) / 2.0;
+            qm[(i + 3, i + 3)] = qi * dt;
+        }
+        self.p = (&(&(&f * &self.p) * &f.t()) + &qm).symmetrized();
+    }
+
+    /// Update with measurement `z`, prediction `hx`, Jacobian `h` (m×6) and noise `r` (m×m).
+    /// Returns the log-likelihood of the innovation, or `None` (no update) if the innovation
+    /// covariance is singular.
+    pub fn update(
+        &mut self,
+        z: &[f64],
+        hx: &[f64],
+        h: &Mat,
+        r: &Mat,
+        kind: Residual,
+    ) -> Option<f64> {
+        let m = z.len();
+        let mut y: Vec<f64> = z.iter().zip(hx).map(|(a, b)| a - b).collect();
+        if kind == Residual::AzimuthFirst {
+            y[0] = wrap_pi(y[0]);
+        }
+        let pht = &self.p * &h.t();
+        let s = (&(h * &pht) + r).symmetrized();
+        let s_inv = s.inverse()?;
+        let det = s.determinant();
+        if det <= 0.0 {
+            return None;
+        }
+        let k = &pht * &s_inv;
+        let yv = Mat::column(&y);
+        let dx = &k * &yv;
+        for i in 0..6 {
+            self.x[i] += dx[(i, 0)];
+        }
+        let i_kh = &Mat::identity(6) - &(&k * h);
+        self.p = (&(&(&i_kh * &self.p) * &i_kh.t()) + &(&(&k * r) * &k.t())).symmetrized();
+        let maha = (&(&yv.t() * &s_inv) * &yv)[(0, 0)];
+        Some(-0.5 * (maha + det.ln() + m as f64 * (std::f64::consts::TAU).ln()))
+    }
+
+    /// Bearing update: measured azimuth and zenith (rad, array frame) with standard deviations.
+    pub fn update_bearing(
+        &mut self,
+        array: &ArrayPose,
+        azimuth: f64,
+        zenith: f64,
+        sigma_az: f64,
+        sigma_zen: f64,
+    ) -> Option<f64> {
+        let predict = |pos: [f64; 3]| {
+            let rel = [
+                pos[0] - array.position[0],
+                pos[1] - array.position[1],
+                pos[2] - array.position[2],
+            ];
+            angles_of(array.to_array(rel))
+        };
+        let pos = self.position();
+        let (az0, zen0) = predict(pos);
+        let mut h = Mat::zeros(2, 6);
+        let eps = 1e-4
+            * (1.0
+                + crate::observation::norm([
+                    pos[0] - array.position[0],
+                    pos[1] - array.position[1],
+                    pos[2] - array.position[2],
+                ]));
+        for i in 0..3 {
+            let mut plus = pos;
+            let mut minus = pos;
+            plus[i] += eps;
+            minus[i] -= eps;
+            let (ap, zp) = predict(plus);
+            let (am, zm) = predict(minus);
+            h[(0, i)] = wrap_pi(ap - am) / (2.0 * eps);
+            h[(1, i)] = (zp - zm) / (2.0 * eps);
+        }
+        let r = Mat::diagonal(&[sigma_az * sigma_az, sigma_zen * sigma_zen]);
+        self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)
+    }
+
+    /// Horizontal speed update |v_xy| = `speed` ± `sigma`; skipped (None) while the predicted
+    /// speed is too small for a direction.
+    pub fn update_horizontal_speed(&mut self, speed: f64, sigma: f64) -> Option<f64> {
+        let s = self.x[3].hypot(self.x[4]);
+        if s < 0.05 {
+            return None;
+        }
+        let mut h = Mat::zeros(1, 6);
+        h[(0, 3)] = self.x[3] / s;
+        h[(0, 4)] = self.x[4] / s;
+        self.update(&[speed], &[s], &h, &Mat::diagonal(&[sigma * sigma]), Residual::Linear)
+    }
+
+    /// Linear update of selected velocity components towards `values` ± `sigma`.
+    pub fn update_velocity(&mut self, axes: &[usize], values: &[f64], sigma: f64) -> Option<f64> {
+        let mut h = Mat::zeros(axes.len(), 6);
+        let mut hx = Vec::with_capacity(axes.len());
+        for (row, &axis) in axes.iter().enumerate() {
+            h[(row, 3 + axis)] = 1.0;
+            hx.push(self.x[3 + axis]);
+        }
+        let r = Mat::identity(axes.len()).scaled(sigma * sigma);
+        self.update(values, &hx, &h, &r, Residual::Linear)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn assert_spd(p: &Mat) {
+        assert!(p.asymmetry() < 1e-12, "asymmetric: {}", p.asymmetry());
+        assert!(p.cholesky().is_some(), "not positive definite: {p:?}");
+    }
+
+    #[test]
+    fn covariance_stays_symmetric_positive_definite() {
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.3, 0.0, 0.0);
+        let mut f = Ekf::new(
+            [5.0, 1.0, 2.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[4.0, 4.0, 1.0, 1.0, 1.0, 1.0]),
+        );
+        let mut rng = crate::testutil::Rng::new(11);
+        for k in 0..300 {
+            f.predict(0.1, [0.5, 0.5, 0.05]);
+            let t = k as f64 * 0.1;
+            let truth = [6.0 + 1.5 * (0.2 * t).cos(), 1.0 + 1.5 * (0.2 * t).sin(), 2.0];
+            let (az, zen) = angles_of(array.to_array(truth));
+            f.update_bearing(
+                &array,
+                az + 0.01 * rng.normal(),
+                zen + 0.01 * rng.normal(),
+                0.01,
+                0.01,
+            );
+            f.update_horizontal_speed(0.3, 0.05);
+            if k % 7 == 0 {
+                f.update_velocity(&[2], &[0.0], 0.1);
+            }
+            assert_spd(&f.p);
+        }
+        // Bearings alone leave range poorly known: its variance stays the largest.
+        let d = f.position();
+        let u = [
+            d[0] / crate::observation::norm(d),
+            d[1] / crate::observation::norm(d),
+            d[2] / crate::observation::norm(d),
+        ];
+        let mut along = 0.0;
+        for i in 0..3 {
+            for j in 0..3 {
+                along += u[i] * f.p[(i, j)] * u[j];
+            }
+        }
+        let across = f.p[(2, 2)].min(along);
+        assert!(along >= across);
+    }
+
+    #[test]
+    fn bearing_update_moves_towards_the_ray() {
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let mut f = Ekf::new(
+            [5.0, 0.0, 2.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0]),
+        );
+        let truth = [5.0, 1.0, 2.0];
+        let (az, zen) = angles_of(truth);
+        let before = wrap_pi(angles_of(f.position()).0 - az).abs();
+        let ll = f.update_bearing(&array, az, zen, 0.01, 0.01).unwrap();
+        let after = wrap_pi(angles_of(f.position()).0 - az).abs();
+        assert!(after < 0.1 * before, "{before} → {after}");
+        assert!(ll.is_finite());
+    }
+}

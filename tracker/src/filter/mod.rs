@@ -1,0 +1,104 @@
+//! The two filters that turn per-step cues into positions (ALGORITHMS.md §8).
+//!
+//! Both see exactly the same [`Step`]s: the smoothed DoA and the LoS decision of the array,
+//! the motion class and the acoustic speeds. `paper` is the paper's position-only Kalman
+//! filter fed with per-step coordinates (the baseline); `aim` is a Gaussian mixture of EKFs on
+//! position and velocity with bearing, speed and motion-class updates.
+
+pub mod aim;
+pub mod ekf;
+pub mod paper;
+
+use crate::doa::DoaState;
+use crate::dynamics::AcousticSpeed;
+use crate::linalg::Mat;
+use crate::motion::MotionClass;
+use crate::site::{ArrayPose, Room};
+
+/// Which filter to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FilterKind {
+    /// The paper's position-only Kalman filter on per-step coordinates.
+    Paper,
+    /// Position–velocity EKF mixture with bearing, speed and motion-class updates.
+    Aim,
+}
+
+impl std::str::FromStr for FilterKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "paper" => Ok(FilterKind::Paper),
+            "aim" => Ok(FilterKind::Aim),
+            other => Err(format!("unknown filter `{other}` (expected `paper` or `aim`)")),
+        }
+    }
+}
+
+/// Everything a filter may use at one output instant.
+#[derive(Clone, Debug)]
+pub struct Step<'a> {
+    /// Output time, s.
+    pub t: f64,
+    /// Time since the previous step, s.
+    pub dt: f64,
+    /// The array whose bearings drive the track.
+    pub array: &'a ArrayPose,
+    /// The DoA window's state, if it has one (LoS or not).
+    pub doa: Option<DoaState>,
+    /// Line-of-sight decision (false without DoA).
+    pub los: bool,
+    /// Motion class.
+    pub motion: MotionClass,
+    /// Speeds from the dynamics.
+    pub speed: AcousticSpeed,
+    /// The flight volume, if the site gives it.
+    pub room: Option<Room>,
+}
+
+/// A filter's output at one step.
+#[derive(Clone, Debug)]
+pub struct Estimate {
+    /// Position, world ENU m.
+    pub position: [f64; 3],
+    /// Velocity, m/s.
+    pub velocity: [f64; 3],
+    /// Covariance of the position (3×3, m²).
+    pub position_covariance: Mat,
+}
+
+/// A tracking filter.
+pub trait Filter {
+    /// Consumes one step; returns the estimate, or `None` before the first usable bearing.
+    fn step(&mut self, step: &Step) -> Option<Estimate>;
+}
+
+/// A new filter of the given kind.
+pub fn new_filter(kind: FilterKind) -> Box<dyn Filter + Send> {
+    match kind {
+        FilterKind::Paper => Box::new(paper::PaperFilter::default()),
+        FilterKind::Aim => Box::new(aim::AimFilter::default()),
+    }
+}
+
+/// Unit vector of the smoothed DoA in the world frame.
+pub fn world_direction(array: &ArrayPose, doa: &DoaState) -> [f64; 3] {
+    array.to_world(crate::observation::unit_vector(doa.azimuth_rad, doa.zenith_rad))
+}
+
+/// The farthest range along a world direction from `origin` that stays inside the room
+/// (or `default` without a room).
+pub fn max_range_in_room(origin: [f64; 3], dir: [f64; 3], room: Option<Room>, default: f64) -> f64 {
+    let Some(room) = room else { return default };
+    let mut best = default;
+    for i in 0..3 {
+        if dir[i].abs() > 1e-9 {
+            let bound = if dir[i] > 0.0 { room.max[i] } else { room.min[i] };
+            let r = (bound - origin[i]) / dir[i];
+            if r > 0.0 {
+                best = best.min(r);
+            }
+        }
+    }
+    best.max(0.5)
+}

@@ -1,0 +1,212 @@
+//! Drone profiles: the physical constants the dynamics need (ALGORITHMS.md §5, §10).
+//!
+//! ```toml
+//! name = "DJI Mini 2"
+//! structure = "quad"            # quad | hexa | octo | y6
+//! blades = 2                    # blades per propeller, n
+//! mass_kg = 0.249
+//! k_v = 2.27e-5                 # thrust coefficient, N/Hz² of rotation frequency (self-calibrated on hover)
+//! k_h = 3.4e-7                  # drag-torque coefficient, N·m/Hz²
+//! i_z = 4.0e-4                  # yaw moment of inertia, kg·m²
+//! lambda_h = 0.01               # horizontal quadratic drag, N·s²/m²
+//! lambda_v = 0.02               # vertical quadratic drag, N·s²/m²
+//! bpf_min_hz = 200.0            # BPF search range
+//! bpf_max_hz = 500.0
+//! split_hz_per_mps = 0.0        # optional: front/rear BPF split per m/s of cruise speed (0 = unknown)
+//! ```
+
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::config::{check, line_of, parse_toml, read_text, ConfigError};
+
+/// Standard gravity, m/s².
+pub const G: f64 = 9.806_65;
+
+/// Rotor layout; it fixes the rotor count and which rotors turn alike (paper §III-B).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Structure {
+    /// Four rotors.
+    Quad,
+    /// Six rotors.
+    Hexa,
+    /// Eight rotors.
+    Octo,
+    /// Six rotors on three arms, coaxial pairs.
+    Y6,
+}
+
+impl Structure {
+    /// Number of rotors N.
+    pub fn rotors(self) -> usize {
+        match self {
+            Structure::Quad => 4,
+            Structure::Hexa | Structure::Y6 => 6,
+            Structure::Octo => 8,
+        }
+    }
+}
+
+/// A drone profile with every coefficient in SI units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Profile {
+    /// Display name.
+    pub name: String,
+    /// Rotor layout.
+    pub structure: Structure,
+    /// Blades per propeller, n.
+    pub blades: u32,
+    /// Mass m, kg.
+    pub mass_kg: f64,
+    /// Thrust coefficient k_v, N/Hz² (of rotation frequency): T_i = k_v f_i².
+    pub k_v: f64,
+    /// Drag-torque coefficient k_h, N·m/Hz².
+    pub k_h: f64,
+    /// Yaw moment of inertia I_z, kg·m².
+    pub i_z: f64,
+    /// Horizontal quadratic drag λ_h, N·s²/m².
+    pub lambda_h: f64,
+    /// Vertical quadratic drag λ_v, N·s²/m².
+    pub lambda_v: f64,
+    /// Lowest plausible BPF, Hz.
+    pub bpf_min_hz: f64,
+    /// Highest plausible BPF, Hz.
+    pub bpf_max_hz: f64,
+    /// Front/rear BPF split per unit cruise speed, Hz per m/s; 0 when not calibrated.
+    pub split_hz_per_mps: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProfileFile {
+    name: String,
+    structure: Structure,
+    blades: toml::Spanned<u32>,
+    mass_kg: toml::Spanned<f64>,
+    k_v: toml::Spanned<f64>,
+    k_h: toml::Spanned<f64>,
+    i_z: toml::Spanned<f64>,
+    lambda_h: toml::Spanned<f64>,
+    lambda_v: toml::Spanned<f64>,
+    bpf_min_hz: toml::Spanned<f64>,
+    bpf_max_hz: toml::Spanned<f64>,
+    split_hz_per_mps: Option<toml::Spanned<f64>>,
+}
+
+impl Profile {
+    /// Reads and checks a profile file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        Self::parse(&read_text(path)?, path)
+    }
+
+    /// Parses and checks profile TOML `text` (`path` names it in errors).
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        let f: ProfileFile = parse_toml(text, path)?;
+        let positive = |v: &toml::Spanned<f64>, what: &str| {
+            check(v, |x| x > 0.0, &format!("{what} must be positive"), text, path)
+        };
+        let non_negative = |v: &toml::Spanned<f64>, what: &str| {
+            check(v, |x| x >= 0.0, &format!("{what} must not be negative"), text, path)
+        };
+        let blades = *f.blades.get_ref();
+        if !(1..=8).contains(&blades) {
+            return Err(ConfigError {
+                path: path.to_path_buf(),
+                line: Some(line_of(text, f.blades.span().start)),
+                message: format!("blades must be 1 to 8 (got {blades})"),
+            });
+        }
+        let bpf_min_hz = positive(&f.bpf_min_hz, "bpf_min_hz")?;
+        let bpf_max_hz = check(
+            &f.bpf_max_hz,
+            |x| x > bpf_min_hz,
+            "bpf_max_hz must exceed bpf_min_hz",
+            text,
+            path,
+        )?;
+        Ok(Self {
+            name: f.name,
+            structure: f.structure,
+            blades,
+            mass_kg: positive(&f.mass_kg, "mass_kg")?,
+            k_v: positive(&f.k_v, "k_v")?,
+            k_h: positive(&f.k_h, "k_h")?,
+            i_z: positive(&f.i_z, "i_z")?,
+            lambda_h: non_negative(&f.lambda_h, "lambda_h")?,
+            lambda_v: non_negative(&f.lambda_v, "lambda_v")?,
+            bpf_min_hz,
+            bpf_max_hz,
+            split_hz_per_mps: match &f.split_hz_per_mps {
+                Some(v) => non_negative(v, "split_hz_per_mps")?,
+                None => 0.0,
+            },
+        })
+    }
+
+    /// Number of rotors N.
+    pub fn rotors(&self) -> usize {
+        self.structure.rotors()
+    }
+
+    /// The built-in DJI Mini 2 profile (the paper's drone), same as `profiles/dji-mini-2.toml`.
+    pub fn dji_mini_2() -> Self {
+        Self::parse(
+            include_str!("../profiles/dji-mini-2.toml"),
+            Path::new("profiles/dji-mini-2.toml"),
+        )
+        .expect("the bundled profile is valid")
+    }
+
+    /// BPF of every rotor at hover with the profile's k_v, Hz: n·sqrt(m g / (N k_v)).
+    pub fn hover_bpf_hz(&self) -> f64 {
+        self.blades as f64 * (self.mass_kg * G / (self.rotors() as f64 * self.k_v)).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bundled_profiles_parse() {
+        let mini = Profile::dji_mini_2();
+        assert_eq!(mini.rotors(), 4);
+        // The paper: hover rotor 164 Hz, BPF ≈ 328 Hz.
+        assert!((mini.hover_bpf_hz() - 328.0).abs() < 3.0, "{}", mini.hover_bpf_hz());
+        for name in ["dji-fpv.toml", "hexa-x.toml"] {
+            let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("profiles").join(name);
+            let prof = Profile::load(&p).unwrap();
+            let hover = prof.hover_bpf_hz();
+            assert!(hover > prof.bpf_min_hz && hover < prof.bpf_max_hz, "{name}: {hover}");
+        }
+    }
+
+    #[test]
+    fn bad_values_name_file_and_line() {
+        let good = include_str!("../profiles/dji-mini-2.toml");
+        let bad = good.replace("mass_kg = 0.249", "mass_kg = -0.249");
+        let line = bad.lines().position(|l| l.starts_with("mass_kg")).unwrap() + 1;
+        let e = Profile::parse(&bad, Path::new("p.toml")).unwrap_err();
+        assert_eq!(e.line, Some(line));
+        assert!(
+            e.to_string().starts_with(&format!("p.toml:{line}: mass_kg must be positive")),
+            "{e}"
+        );
+
+        let bad = good.replace("structure = \"quad\"", "structure = \"tri\"");
+        let line = bad.lines().position(|l| l.starts_with("structure")).unwrap() + 1;
+        let e = Profile::parse(&bad, Path::new("p.toml")).unwrap_err();
+        assert_eq!(e.line, Some(line), "{e}");
+
+        let bad = good.replace("bpf_max_hz = 500.0", "bpf_max_hz = 100.0");
+        let e = Profile::parse(&bad, Path::new("p.toml")).unwrap_err();
+        assert!(e.message.contains("bpf_max_hz must exceed"), "{e}");
+
+        let missing: String =
+            good.lines().filter(|l| !l.starts_with("k_v")).map(|l| format!("{l}\n")).collect();
+        let e = Profile::parse(&missing, Path::new("p.toml")).unwrap_err();
+        assert!(e.message.contains("k_v"), "{e}");
+    }
+}

@@ -1,0 +1,301 @@
+//! The single-array AIM pipeline: inputs in time order → fixes at a fixed output period.
+//!
+//! Per output instant: the array's DoA window (IQR smoothing, trend, LoS) → BPF groups →
+//! motion class (Table I, majority vote) → hover self-calibration and acoustic speeds →
+//! the chosen filter → one [`Fix`].
+
+use crate::doa::{DoaConfig, DoaState, DoaWindow};
+use crate::dynamics::{sum_bpf_squared, HoverCalibration, SpeedIntegrator};
+use crate::filter::{new_filter, Filter, FilterKind, Step};
+use crate::motion::{bpf_groups, MotionClass, MotionClassifier};
+use crate::observation::{Input, Spectrum};
+use crate::profile::Profile;
+use crate::site::Site;
+
+/// Tunables of the pipeline.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackerConfig {
+    /// Output period, s.
+    pub output_period_s: f64,
+    /// The array to track with (default: the site's first).
+    pub array_id: Option<u16>,
+    /// DoA window tunables.
+    pub doa: DoaConfig,
+    /// Majority-vote window of the motion class, s.
+    pub class_window_s: f64,
+    /// BPF peaks weaker than this fraction of the strongest are ignored.
+    pub min_relative_amplitude: f64,
+    /// BPF peaks closer than this are one group, Hz.
+    pub min_separation_hz: f64,
+    /// DoA or spectra older than this are stale, s.
+    pub stale_s: f64,
+    /// Consecutive hover needed before the hover thrust is calibrated, s.
+    pub calibration_hover_s: f64,
+    /// A thrust excess beyond this many hover spreads is an acceleration.
+    pub accel_sigmas: f64,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            output_period_s: 0.1,
+            array_id: None,
+            doa: DoaConfig::default(),
+            class_window_s: 0.5,
+            min_relative_amplitude: 0.25,
+            min_separation_hz: 0.8,
+            stale_s: 0.5,
+            calibration_hover_s: 1.0,
+            accel_sigmas: 3.0,
+        }
+    }
+}
+
+/// One position fix.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fix {
+    /// Time, s.
+    pub t: f64,
+    /// Position, world ENU m.
+    pub position: [f64; 3],
+    /// Velocity, m/s.
+    pub velocity: [f64; 3],
+    /// Standard deviation of each position coordinate, m.
+    pub sigma: [f64; 3],
+    /// Motion class.
+    pub motion: MotionClass,
+    /// Line-of-sight decision.
+    pub los: bool,
+}
+
+impl Fix {
+    /// The fix as one JSON object (the `aim track`/`aim replay` contract).
+    pub fn to_json(&self) -> String {
+        format!(
+            "{{\"t\":{:.3},\"x\":{:.3},\"y\":{:.3},\"z\":{:.3},\"motion\":\"{}\",\"los\":{}}}",
+            self.t,
+            self.position[0],
+            self.position[1],
+            self.position[2],
+            self.motion.as_str(),
+            self.los
+        )
+    }
+}
+
+/// Per-instant diagnostics, for evaluation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Diagnostics {
+    /// DoA window state, if any.
+    pub doa: Option<DoaState>,
+    /// Number of BPF groups heard.
+    pub bpf_groups: usize,
+    /// Calibrated k_v, N/Hz².
+    pub k_v: f64,
+    /// Acoustic horizontal speed, m/s.
+    pub speed_h: f64,
+}
+
+/// The pipeline.
+pub struct Tracker {
+    config: TrackerConfig,
+    site: Site,
+    array_index: usize,
+    profile: Profile,
+    window: DoaWindow,
+    last_spectrum: Option<Spectrum>,
+    classifier: MotionClassifier,
+    calibration: HoverCalibration,
+    speed: SpeedIntegrator,
+    filter: Box<dyn Filter + Send>,
+    next_output: Option<f64>,
+    last_output: Option<f64>,
+    hover_run_s: f64,
+    latest_input_t: f64,
+    diagnostics: Vec<Diagnostics>,
+}
+
+impl std::fmt::Debug for Tracker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Tracker")
+            .field("config", &self.config)
+            .field("next_output", &self.next_output)
+            .finish()
+    }
+}
+
+/// Errors building a tracker.
+#[derive(Debug, thiserror::Error)]
+pub enum TrackerError {
+    /// The configured array is not in the site.
+    #[error("array {0} is not in the site file")]
+    UnknownArray(u16),
+    /// Output period not positive.
+    #[error("output period must be positive (got {0} s)")]
+    BadPeriod(f64),
+}
+
+impl Tracker {
+    /// A tracker for `site` and `profile` with the given filter.
+    pub fn new(
+        site: Site,
+        profile: Profile,
+        kind: FilterKind,
+        config: TrackerConfig,
+    ) -> Result<Self, TrackerError> {
+        if config.output_period_s.is_nan() || config.output_period_s <= 0.0 {
+            return Err(TrackerError::BadPeriod(config.output_period_s));
+        }
+        let array_index = match config.array_id {
+            Some(id) => {
+                site.arrays.iter().position(|a| a.id == id).ok_or(TrackerError::UnknownArray(id))?
+            }
+            None => 0,
+        };
+        Ok(Self {
+            window: DoaWindow::new(config.doa.clone()),
+            classifier: MotionClassifier::new(config.class_window_s),
+            calibration: HoverCalibration::new(&profile),
+            speed: SpeedIntegrator::new(&profile),
+            filter: new_filter(kind),
+            config,
+            site,
+            array_index,
+            profile,
+            last_spectrum: None,
+            next_output: None,
+            last_output: None,
+            hover_run_s: 0.0,
+            latest_input_t: f64::NEG_INFINITY,
+            diagnostics: Vec::new(),
+        })
+    }
+
+    /// Id of the array the track uses.
+    pub fn array_id(&self) -> u16 {
+        self.site.arrays[self.array_index].id
+    }
+
+    /// Calibrated k_v so far, N/Hz².
+    pub fn k_v(&self) -> f64 {
+        self.calibration.k_v()
+    }
+
+    /// Diagnostics of every output instant so far.
+    pub fn diagnostics(&self) -> &[Diagnostics] {
+        &self.diagnostics
+    }
+
+    /// Feeds one input (in time order; older inputs than the newest are dropped) and returns
+    /// the fixes of every output instant up to it.
+    pub fn push(&mut self, input: Input) -> Vec<Fix> {
+        let t = input.t();
+        if !t.is_finite() || t + 1e-9 < self.latest_input_t {
+            return Vec::new();
+        }
+        let fixes = self.advance_to(t);
+        self.latest_input_t = t;
+        let id = self.array_id();
+        match input {
+            Input::Bearing(b) if b.array_id == id => self.window.push(b),
+            Input::Spectrum(s) if s.array_id == id => self.last_spectrum = Some(s),
+            _ => {}
+        }
+        fixes
+    }
+
+    /// Emits the fixes of every output instant up to and including the newest input.
+    pub fn flush(&mut self) -> Vec<Fix> {
+        let t = self.latest_input_t;
+        if t.is_finite() {
+            self.advance_to(t + 1e-9)
+        } else {
+            Vec::new()
+        }
+    }
+
+    /// Output instants strictly before `t`.
+    fn advance_to(&mut self, t: f64) -> Vec<Fix> {
+        let period = self.config.output_period_s;
+        let next = *self.next_output.get_or_insert_with(|| (t / period).ceil() * period);
+        let mut fixes = Vec::new();
+        let mut k = 0u64;
+        let mut instant = next;
+        while instant < t {
+            if let Some(fix) = self.output(instant) {
+                fixes.push(fix);
+            }
+            k += 1;
+            instant = next + k as f64 * period;
+        }
+        self.next_output = Some(instant);
+        fixes
+    }
+
+    fn output(&mut self, t: f64) -> Option<Fix> {
+        let c = &self.config;
+        let dt = self.last_output.map_or(c.output_period_s, |t0| t - t0);
+        self.last_output = Some(t);
+        let doa = match self.window.latest_t() {
+            Some(tl) if t - tl <= c.stale_s => self.window.state(tl),
+            _ => None,
+        };
+        let groups = match &self.last_spectrum {
+            Some(s) if t - s.t <= c.stale_s => {
+                bpf_groups(&s.peaks, &self.profile, c.min_relative_amplitude, c.min_separation_hz)
+            }
+            _ => Vec::new(),
+        };
+        let sum_sq = sum_bpf_squared(&groups, self.profile.rotors());
+        let multiple = groups.len() >= 2;
+        // A significant thrust excess is an acceleration (a yaw keeps the total thrust): with a
+        // split it tilts the drone (horizontal), without one it climbs or sinks (vertical).
+        // Otherwise Table I with the DoA trend.
+        let accelerating = sum_sq.is_some_and(|s| self.calibration.excess(s, c.accel_sigmas).1);
+        let moving = accelerating || doa.is_some_and(|d| d.moving);
+        let raw = MotionClass::from_cues(multiple, moving);
+        let motion = self.classifier.update(t, raw);
+        if motion == MotionClass::Hover {
+            self.hover_run_s += dt;
+            if self.hover_run_s >= c.calibration_hover_s {
+                if let Some(s) = sum_sq {
+                    self.calibration.add_hover(s, dt);
+                }
+            }
+        } else {
+            self.hover_run_s = 0.0;
+        }
+        let speed = self.speed.update(dt, motion, sum_sq, &self.calibration);
+        let los = doa.is_some_and(|d| d.los);
+        self.diagnostics.push(Diagnostics {
+            doa,
+            bpf_groups: groups.len(),
+            k_v: self.calibration.k_v(),
+            speed_h: speed.horizontal,
+        });
+        let step = Step {
+            t,
+            dt,
+            array: &self.site.arrays[self.array_index],
+            doa,
+            los,
+            motion,
+            speed,
+            room: self.site.room,
+        };
+        let est = self.filter.step(&step)?;
+        let pc = &est.position_covariance;
+        Some(Fix {
+            t,
+            position: est.position,
+            velocity: est.velocity,
+            sigma: [
+                pc[(0, 0)].max(0.0).sqrt(),
+                pc[(1, 1)].max(0.0).sqrt(),
+                pc[(2, 2)].max(0.0).sqrt(),
+            ],
+            motion,
+            los,
+        })
+    }
+}
