@@ -137,7 +137,9 @@ fn drain(mut pipe: impl Read + Send + 'static) -> thread::JoinHandle<String> {
 /// The parity report computed on the host.
 pub fn host_report() -> String {
     let mut report = String::new();
-    aim_golden::report::write_parity(&mut report).expect("writing to a String cannot fail");
+    let mut pipeline = Box::new(aim_golden::aim_dsp::Pipeline::empty());
+    aim_golden::report::write_parity(&mut report, &mut pipeline)
+        .expect("writing to a String cannot fail");
     report
 }
 

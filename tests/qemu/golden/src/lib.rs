@@ -14,4 +14,8 @@
 
 pub mod probe;
 pub mod report;
+pub mod scenario;
+
+/// The DSP crate the reports run, for the host side (`xtask`) to name `Pipeline`.
+pub use aim_dsp;
 pub mod signal;

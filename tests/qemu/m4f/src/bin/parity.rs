@@ -3,13 +3,15 @@
 #![no_std]
 #![no_main]
 
+use aim_golden::aim_dsp::Pipeline;
 use aim_qemu_m4f::{fail, succeed, Out};
 use cortex_m_rt::entry;
 
 #[entry]
 fn main() -> ! {
     let mut out = Out::open();
-    match aim_golden::report::write_parity(&mut out) {
+    let Some(pipeline) = cortex_m::singleton!(: Pipeline = Pipeline::empty()) else { fail() };
+    match aim_golden::report::write_parity(&mut out, pipeline) {
         Ok(()) => succeed(),
         Err(_) => fail(),
     }
