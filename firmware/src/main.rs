@@ -1,16 +1,80 @@
-//! AIM array board firmware (work in progress).
+//! AIM array board firmware (NUCLEO-H743ZI2): TDM microphones in, `aim-wire` frames out.
+//!
+//! Two executors, because capture must never wait for the DSP:
+//! - an interrupt executor (vector `UART4`, unused by the board, priority 6) runs the capture
+//!   task, which empties the SAI DMA ring within microseconds of each half-transfer, and the
+//!   uplink task, which keeps USART3 busy;
+//! - the thread-mode executor runs the processing task (`aim_dsp::Pipeline`), which may take
+//!   several milliseconds per block and is preempted by the capture task whenever audio arrives.
+//!
+//! Everything below is start-up; the streaming loops live in the library (`capture`,
+//! `processing`, `uplink`) and never `unwrap!`.
 #![no_std]
 #![no_main]
 
-use embassy_executor::Spawner;
-use embassy_time::Timer;
+use aim_firmware::capture::{self, SaiCapture, SaiPins};
+use aim_firmware::{clocks, config, processing, uplink};
+use cortex_m_rt::entry;
+use embassy_executor::{Executor, InterruptExecutor};
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::wdg::IndependentWatchdog;
+use static_cell::StaticCell;
 use {defmt_rtt as _, panic_probe as _};
 
-#[embassy_executor::main]
-async fn main(_spawner: Spawner) {
-    let _p = embassy_stm32::init(embassy_stm32::Config::default());
-    defmt::info!("aim-firmware up");
-    loop {
-        Timer::after_secs(1).await;
+static EXECUTOR_CAPTURE: InterruptExecutor = InterruptExecutor::new();
+static EXECUTOR_THREAD: StaticCell<Executor> = StaticCell::new();
+
+#[interrupt]
+unsafe fn UART4() {
+    // SAFETY: UART4 is not used by the firmware; its vector only runs this executor.
+    unsafe { EXECUTOR_CAPTURE.on_interrupt() }
+}
+
+#[entry]
+fn main() -> ! {
+    let p = embassy_stm32::init(clocks::embassy_config());
+    let core = defmt::unwrap!(cortex_m::Peripherals::take());
+    let cycles = aim_firmware::init_core(core);
+    if let Err(measured) = clocks::check_sai_kernel_clock() {
+        defmt::panic!(
+            "SAI1 kernel clock is {} Hz, expected {} Hz",
+            measured,
+            clocks::SAI_KERNEL_HZ
+        );
     }
+    defmt::info!(
+        "aim-firmware {}: array {}, {} mics, {} Hz, SAI bit clock {} Hz",
+        env!("CARGO_PKG_VERSION"),
+        config::ARRAY_ID,
+        config::MIC_COUNT,
+        config::SAMPLE_RATE_HZ,
+        clocks::SAI_BIT_CLOCK_HZ
+    );
+
+    aim_firmware::freeze_watchdog_in_debug();
+    let mut watchdog = IndependentWatchdog::new(p.IWDG1, config::WATCHDOG_TIMEOUT_US);
+    watchdog.unleash();
+
+    let (chunk_tx, chunk_rx) = capture::chunk_queue();
+    let sai = SaiCapture::new(SaiPins {
+        sai: p.SAI1,
+        sck: p.PE5,
+        fs: p.PE4,
+        sd: p.PE6,
+        mclk: p.PE2,
+        dma: p.DMA1_CH0,
+    });
+    let uart = defmt::unwrap!(uplink::uplink_uart(p.USART3, p.PD8, p.DMA1_CH1));
+    let processing = processing::Processing::new(cycles, watchdog);
+
+    interrupt::UART4.set_priority(Priority::P6);
+    let spawner = EXECUTOR_CAPTURE.start(interrupt::UART4);
+    spawner.spawn(defmt::unwrap!(capture::capture_task(sai, chunk_tx)));
+    spawner.spawn(defmt::unwrap!(uplink::uplink_task(uart)));
+
+    let executor = EXECUTOR_THREAD.init(Executor::new());
+    executor.run(|spawner| {
+        spawner.spawn(defmt::unwrap!(processing::processing_task(processing, chunk_rx)));
+    })
 }
