@@ -301,9 +301,10 @@ impl Report {
         self.sections.iter().find(|s| s.name == name)
     }
 
-    /// Prints every measured figure (all sections and stages, RAM), one `qemu:` line each.
+    /// Prints every measured figure (all sections but the warm-ups, every stage, RAM), one
+    /// `qemu:` line each.
     pub fn print(&self) {
-        for section in &self.sections {
+        for section in self.sections.iter().filter(|s| !s.name.starts_with("warmup-")) {
             let seconds = section.samples as f64 / section.sample_rate_hz.max(1) as f64;
             println!(
                 "qemu: section {} ({} samples = {seconds:.3} s of audio at {} Hz)",
