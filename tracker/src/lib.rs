@@ -16,6 +16,7 @@ pub mod dynamics;
 pub mod filter;
 pub mod iqr;
 pub mod linalg;
+pub mod link;
 pub mod motion;
 pub mod observation;
 pub mod profile;

@@ -1,10 +1,65 @@
-//! `aim frames`.
+//! `aim frames`: decode frames from a recording, stdin or a serial port; print JSON lines.
+//!
+//! stdout: one JSON object per decoded frame (`aim_tracker::link::json::frame`), then one
+//! `{"kind":"stats",...}` line with the link statistics. Damaged or unknown frames are
+//! skipped and counted; `--errors` also describes each on stderr.
+
+use std::collections::HashMap;
+use std::io::Write as _;
+
+use aim_tracker::link::{self, FrameSource};
+use aim_wire::Body;
+use anyhow::Context as _;
 
 /// Arguments of `aim frames`.
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Recording made by `aim record` (or any raw capture of the link); `-` for stdin.
+    #[arg(required_unless_present = "serial", conflicts_with = "serial")]
+    input: Option<String>,
+    /// Read a serial port live instead (until interrupted).
+    #[arg(long)]
+    serial: Option<String>,
+    /// Baud rate of `--serial`.
+    #[arg(long, default_value_t = link::serial::DEFAULT_BAUD)]
+    baud: u32,
+    /// Describe every frame that did not decode on stderr.
+    #[arg(long)]
+    errors: bool,
+}
 
 /// Runs `aim frames`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`aim frames` is not built yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (name, reader): (String, Box<dyn std::io::Read + Send>) = match (&args.serial, &args.input)
+    {
+        (Some(port), _) => (port.clone(), Box::new(link::serial::open(port, args.baud)?)),
+        (None, Some(path)) => (path.clone(), link::open_input(path)?),
+        (None, None) => anyhow::bail!("give a recording, `-` for stdin, or --serial PORT"),
+    };
+    let mut source = FrameSource::new(reader);
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    // Sample rate per array, from its latest Hello, to give times in seconds.
+    let mut rates: HashMap<u8, u32> = HashMap::new();
+    let mut chunk = 0u64;
+    while let Some(outcome) = source.next_outcome().with_context(|| format!("reading {name}"))? {
+        chunk += 1;
+        match outcome {
+            Ok(frame) => {
+                if let Body::Hello(hello) = &frame.body {
+                    rates.insert(frame.header.array_id, hello.sample_rate_hz);
+                }
+                let rate = rates.get(&frame.header.array_id).copied();
+                writeln!(out, "{}", link::json::frame(&frame, rate))?;
+                if args.serial.is_some() {
+                    out.flush()?;
+                }
+            }
+            Err(e) if args.errors => eprintln!("{name}: chunk {chunk}: {e}"),
+            Err(_) => {}
+        }
+    }
+    writeln!(out, "{}", link::json::stats(source.stats()))?;
+    out.flush()?;
+    Ok(())
 }
