@@ -1,16 +1,21 @@
 //! Instruction counts and RAM of the DSP on QEMU's Cortex-M4F model, as budget lines.
 //!
-//! The `cost` binary of `tests/qemu` runs the pipeline on golden input, marking stage
-//! boundaries with probes (`aim_golden::probe`); the `insn_probe` plugin counts every executed
-//! guest instruction exactly and charges it to the probe last entered, and writes the totals of
-//! each section. The guest prints, in the same order, `section <name> <samples>
-//! <sample_rate_hz>` per section and `ram <name> <bytes>` lines. Instructions per second of audio
-//! = instructions × sample rate / samples.
+//! The `cost` binary of `tests/qemu` runs the pipeline on golden input; the `insn_probe` plugin
+//! counts every executed guest instruction exactly and charges it to an id
+//! (`aim_golden::probe::Probe`). Ids switch in two ways: the guest calls its probe table
+//! (explicit points: input synthesis, pipeline, reference FFT, end of section), and the code of
+//! each DSP stage switches to that stage's id, found from the ELF's debug information (inline
+//! chains from `addr2line -i`), so the pipeline needs no hooks. Out-of-line shared code
+//! (microfft's butterflies, libm) is charged to the stage that called it.
+//!
+//! The guest prints, in the plugin's section order, `section <name> <samples> <sample_rate_hz>`
+//! per section and `ram <name> <bytes>` lines. Instructions per second of audio =
+//! instructions × sample rate / samples.
 use std::{collections::BTreeMap, path::Path};
 
 use aim_golden::probe::{Probe, SLOTS};
 use anyhow::{bail, Context, Result};
-use object::{Object, ObjectSymbol};
+use object::{Object, ObjectSection, ObjectSymbol};
 use serde::Deserialize;
 
 use crate::{budget::Line, qemu::Binaries};
@@ -92,28 +97,149 @@ pub fn measure(root: &Path, binaries: &Binaries) -> Result<Report> {
     let plugin = crate::qemu::build_plugin(root)?;
     let elf = std::fs::read(&binaries.cost)
         .with_context(|| format!("reading {}", binaries.cost.display()))?;
-    let table = probe_table_address(&elf)?;
+    let mut map = probe_table_ranges(&elf)?;
+    map.extend(stage_ranges(&binaries.cost, &elf)?);
+    let map_path = plugin.with_file_name("cost-map.txt");
+    let map_text: String =
+        map.iter().map(|r| format!("{:#x} {:#x} {}\n", r.start, r.end, r.probe.id())).collect();
+    std::fs::write(&map_path, map_text)
+        .with_context(|| format!("writing {}", map_path.display()))?;
     let counts_path = plugin.with_file_name("cost-counts.txt");
     let args = format!(
-        "{},base={table:#x},slots={SLOTS},dump={},out={}",
+        "{},map={},ids={SLOTS},dump={},out={}",
         plugin.display(),
+        map_path.display(),
         Probe::Dump.id(),
         counts_path.display()
     );
     let run = crate::qemu::run(&binaries.cost, Some(&args))?;
     let counts = std::fs::read_to_string(&counts_path)
         .with_context(|| format!("reading the plugin's output {}", counts_path.display()))?;
-    parse(&run.stdout, &counts)
+    let report = parse(&run.stdout, &counts)?;
+    report.check_stages()?;
+    Ok(report)
 }
 
-/// Address of the guest's probe table (symbol `aim_probe_table`), without the Thumb bit.
-fn probe_table_address(elf: &[u8]) -> Result<u64> {
+/// Guest addresses `start..end` whose code switches the plugin to `probe`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Range {
+    /// First address.
+    pub start: u64,
+    /// One past the last address.
+    pub end: u64,
+    /// What the instructions from there on are charged to.
+    pub probe: Probe,
+}
+
+/// The guest's probe table (symbol `aim_probe_table`): one 2-byte `bx lr` slot per probe id.
+fn probe_table_ranges(elf: &[u8]) -> Result<Vec<Range>> {
     let file = object::File::parse(elf).context("parsing the cost ELF")?;
     let symbol = file
         .symbols()
         .find(|s| s.name() == Ok("aim_probe_table"))
         .context("the cost ELF has no symbol `aim_probe_table`")?;
-    Ok(symbol.address() & !1)
+    let base = symbol.address() & !1;
+    Ok(Probe::ALL
+        .iter()
+        .map(|&probe| {
+            let start = base + 2 * probe.id() as u64;
+            Range { start, end: start + 2, probe }
+        })
+        .collect())
+}
+
+/// The code of each DSP stage in the cost ELF, from its debug information: every 2-byte step of
+/// the executable sections is looked up with `addr2line -i` (inlined functions included) and
+/// classified by [`classify`]; code that belongs to no stage (microfft, libm, the guest's own
+/// code) is left out, so the plugin charges it to whichever stage ran it.
+fn stage_ranges(path: &Path, elf: &[u8]) -> Result<Vec<Range>> {
+    let file = object::File::parse(elf).context("parsing the cost ELF")?;
+    let mut addresses = Vec::new();
+    for section in file.sections() {
+        if section.kind() == object::SectionKind::Text {
+            addresses.extend((section.address()..section.address() + section.size()).step_by(2));
+        }
+    }
+    let chains = addr2line(path, &addresses)?;
+    let mut ranges: Vec<Range> = Vec::new();
+    for (&address, chain) in addresses.iter().zip(&chains) {
+        let Some(probe) = classify(chain) else { continue };
+        match ranges.last_mut() {
+            Some(last) if last.end == address && last.probe == probe => last.end = address + 2,
+            _ => ranges.push(Range { start: address, end: address + 2, probe }),
+        }
+    }
+    Ok(ranges)
+}
+
+/// Runs `addr2line -a -i -f -C` (GNU binutils) on `addresses`; returns, per address, the
+/// function names of its inline chain, innermost first.
+fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
+    use std::io::Write;
+    let mut child = std::process::Command::new("addr2line")
+        .args(["-a", "-i", "-f", "-C", "-e"])
+        .arg(path)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .context("running addr2line (GNU binutils; installed with gcc)")?;
+    let mut stdin = child.stdin.take().context("addr2line stdin")?;
+    let input: String = addresses.iter().map(|a| format!("{a:#x}\n")).collect();
+    let writer = std::thread::spawn(move || stdin.write_all(input.as_bytes()));
+    let output = child.wait_with_output().context("reading addr2line's output")?;
+    writer.join().map_err(|_| anyhow::anyhow!("addr2line input thread panicked"))??;
+    if !output.status.success() {
+        bail!("addr2line failed ({})", output.status);
+    }
+    let text = String::from_utf8_lossy(&output.stdout);
+    let mut chains: Vec<Vec<String>> = Vec::with_capacity(addresses.len());
+    let mut lines = text.lines();
+    while let Some(line) = lines.next() {
+        if line.starts_with("0x") {
+            chains.push(Vec::new());
+        } else if let Some(chain) = chains.last_mut() {
+            chain.push(line.to_owned());
+            lines.next(); // the file:line of this function
+        }
+    }
+    if chains.len() != addresses.len() {
+        bail!("addr2line answered {} of {} addresses", chains.len(), addresses.len());
+    }
+    Ok(chains)
+}
+
+/// The DSP stage an instruction belongs to, from its inline chain (function names, innermost
+/// first): the innermost function that names a stage decides. `None` for code outside
+/// `aim_dsp` (and code `aim_dsp` calls out of line, such as microfft's butterflies or libm):
+/// it is charged to the stage that calls it.
+pub fn classify(chain: &[String]) -> Option<Probe> {
+    if !chain.iter().any(|f| f.starts_with("aim_dsp::")) {
+        return None;
+    }
+    for function in chain {
+        let f = function.as_str();
+        let stage = if f.starts_with("aim_dsp::gcc_phat::phat_band")
+            || f.starts_with("aim_dsp::gcc_phat::accumulate_cross")
+        {
+            Probe::Phat
+        } else if f.starts_with("aim_dsp::gcc_phat::") {
+            Probe::Inverse
+        } else if f.starts_with("aim_dsp::doa::")
+            || f.starts_with("aim_dsp::pipeline::Pipeline::estimate_direction")
+        {
+            Probe::Doa
+        } else if f.starts_with("aim_dsp::bpf::")
+            || f.starts_with("aim_dsp::pipeline::Pipeline::spectral_block")
+        {
+            Probe::Bpf
+        } else if f.starts_with("aim_dsp::pipeline::Pipeline::spatial_block") {
+            Probe::Fft
+        } else {
+            continue;
+        };
+        return Some(stage);
+    }
+    Some(Probe::PipelineOther)
 }
 
 /// Pairs the guest's `section` lines with the plugin's sections (same order) and collects the
@@ -177,9 +303,35 @@ impl Report {
         self.sections.iter().find(|s| s.name == name)
     }
 
-    /// Prints every measured figure (all sections and stages, RAM), one `qemu:` line each.
-    pub fn print(&self) {
+    /// Fails if a section that ran the pipeline charged nothing to one of its stages: then
+    /// [`classify`] no longer recognises aim-dsp's function names, and that stage's
+    /// instructions went to `other`.
+    pub fn check_stages(&self) -> Result<()> {
+        const STAGES: [Probe; 5] =
+            [Probe::Fft, Probe::Phat, Probe::Inverse, Probe::Doa, Probe::Bpf];
         for section in &self.sections {
+            if section.stage(Probe::PipelineOther.name()).unwrap_or(0) == 0 {
+                continue; // not a pipeline section
+            }
+            for stage in STAGES {
+                if section.stage(stage.name()).unwrap_or(0) == 0 {
+                    bail!(
+                        "section {}: no instructions in stage `{}`: the stage map of \
+                         xtask/src/instructions.rs (fn classify) no longer matches aim-dsp's \
+                         function names",
+                        section.name,
+                        stage.name()
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Prints every measured figure (all sections but the warm-ups, every stage, RAM), one
+    /// `qemu:` line each.
+    pub fn print(&self) {
+        for section in self.sections.iter().filter(|s| !s.name.starts_with("warmup-")) {
             let seconds = section.samples as f64 / section.sample_rate_hz.max(1) as f64;
             println!(
                 "qemu: section {} ({} samples = {seconds:.3} s of audio at {} Hz)",
@@ -269,6 +421,12 @@ mod tests {
         assert_eq!(s.per_second(5600), 2800);
         assert_eq!(report.section("reference").unwrap().stage("rfft1024"), Some(48230));
         assert_eq!(report.ram["pipeline-8mic"], 100_000);
+        // Phat, inverse and DoA got nothing although the pipeline ran: the map is stale.
+        let error = format!("{:#}", report.check_stages().unwrap_err());
+        assert!(error.contains("8mic") && error.contains("phat"), "{error}");
+        let all = "section 1\nprobe 2 1 1\nprobe 3 1 1\nprobe 4 1 1\nprobe 5 1 1\n\
+                   probe 6 1 1\nprobe 7 1 1\nsection 2\nprobe 8 48230 1\n";
+        parse(GUEST, all).unwrap().check_stages().unwrap();
     }
 
     #[test]
@@ -293,6 +451,37 @@ mod tests {
         assert!(report.lines(&[budget("2mic", "fft", "instr/s")], &[]).is_err());
         assert!(report.lines(&[budget("8mic", "fftt", "instr/s")], &[]).is_err());
         assert!(report.lines(&[budget("8mic", "fft", "cycles")], &[]).is_err());
+    }
+
+    #[test]
+    fn code_is_charged_to_the_innermost_stage_function() {
+        let chain = |names: &[&str]| names.iter().map(|n| (*n).to_owned()).collect::<Vec<_>>();
+        let spatial = "aim_dsp::pipeline::Pipeline::spatial_block";
+        let push = "aim_dsp::pipeline::Pipeline::push<cost::measure::{closure#0}>";
+        assert_eq!(
+            classify(&chain(&["microfft::real::rfft_1024", spatial, push])),
+            Some(Probe::Fft)
+        );
+        assert_eq!(
+            classify(&chain(&["aim_dsp::gcc_phat::phat_band", spatial, push])),
+            Some(Probe::Phat)
+        );
+        assert_eq!(
+            classify(&chain(&["aim_dsp::gcc_phat::correlation_derivatives"])),
+            Some(Probe::Inverse)
+        );
+        assert_eq!(
+            classify(&chain(&["libm::math::sqrtf::sqrtf", "aim_dsp::doa::fit", push])),
+            Some(Probe::Doa)
+        );
+        assert_eq!(classify(&chain(&["aim_dsp::bpf::Decimator::push", push])), Some(Probe::Bpf));
+        assert_eq!(
+            classify(&chain(&["aim_dsp::frontend::FrontEnd::remove_dc", push])),
+            Some(Probe::PipelineOther)
+        );
+        // Out-of-line shared code and the guest's own code: charged to the caller.
+        assert_eq!(classify(&chain(&["microfft::impls::cfft::CFft::compute_butterflies"])), None);
+        assert_eq!(classify(&chain(&["aim_golden::signal::Signal::fill"])), None);
     }
 
     #[test]

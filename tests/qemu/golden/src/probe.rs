@@ -1,9 +1,9 @@
-//! Probe ids: the points the `cost` binary marks in its program, and what the instructions
-//! after each are charged to.
+//! Probe ids: what the instructions of the `cost` binary are charged to.
 //!
-//! The guest calls slot `id` of its probe table; the `insn_probe` QEMU plugin charges every
-//! instruction executed from one probe to the next to the first one's id, and writes the totals
-//! per id when [`Probe::Dump`] runs. Host (`xtask`) and guest share this list.
+//! The `insn_probe` QEMU plugin charges every instruction to the id in force, and writes the
+//! totals per id when [`Probe::Dump`] runs. The guest switches ids explicitly by calling slot
+//! `id` of its probe table; the code of each DSP stage switches to its stage's id (xtask maps
+//! the stage code from the ELF's debug information). Host (`xtask`) and guest share this list.
 
 /// What the instructions after a probe belong to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -13,17 +13,20 @@ pub enum Probe {
     Untracked = 0,
     /// Synthesising the golden input (not part of the pipeline's cost).
     Input = 1,
-    /// Pipeline work outside the named stages: front end, bookkeeping, output sink.
+    /// Pipeline work outside the named stages: the front end (TDM words, DC removal, block
+    /// exponent), bookkeeping, the output sink.
     PipelineOther = 2,
-    /// Windowed real FFTs of every microphone.
+    /// Spatial path: Q15 conversion, window and real FFT of every microphone.
     Fft = 3,
-    /// PHAT-weighted cross spectra of every pair (with band mask and averaging).
+    /// PHAT normalisation of every spectrum in the band, cross spectra of every pair averaged
+    /// over the blocks of one estimate.
     Phat = 4,
-    /// Inverse transforms and the lag search with sub-sample refinement.
+    /// Per pair: lag search over the averaged cross spectrum (the inverse transform) and
+    /// sub-sample refinement.
     Inverse = 5,
-    /// Direction-of-arrival fit.
+    /// Direction of arrival: the weighted least-squares fit and the estimate's bookkeeping.
     Doa = 6,
-    /// Spectral path: decimation, long FFT, BPF peak picking.
+    /// Spectral path: mono mix, decimation, long FFT, BPF peak picking.
     Bpf = 7,
     /// Reference figure: one microfft `rfft_1024`.
     ReferenceRfft = 8,

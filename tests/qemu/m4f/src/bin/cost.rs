@@ -1,8 +1,9 @@
 //! Runs the pipeline between probes, for the `insn_probe` QEMU plugin.
 //!
-//! Prints one `section <name> <samples> <sample_rate_hz>` line per measured section (in the
-//! same order as the plugin's sections), and `ram <name> <bytes>` lines: the pipeline's size and
-//! the peak stack depth of `Pipeline::push`.
+//! Prints one `section <name> <samples> <sample_rate_hz>` line per section (in the same order
+//! as the plugin's sections; per configuration a `warmup-<name>` section, then `<name>`), and
+//! `ram <name> <bytes>` lines: the pipeline's size, the peak stack depth of `Pipeline::push`,
+//! and their sum.
 #![no_std]
 #![no_main]
 
@@ -58,11 +59,18 @@ fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core:
     let words = &mut words[..CHUNK_FRAMES * config.tdm_slots];
     let mut outputs = 0u32;
     let mut sink = |_| outputs += 1;
+    // Warm-up (the BPF analysis window fills first): a section of its own, so that the
+    // plugin's stage ranges do not charge it to the measured section.
     let warm_up = scenario.measured_samples() as u64 / 8;
     while signal.sample_index() < warm_up {
+        probe(Probe::Input);
         signal.fill(words);
+        probe(Probe::PipelineOther);
         pipeline.push(words, &mut sink);
+        probe(Probe::Untracked);
     }
+    writeln!(out, "section warmup-{} {warm_up} {}", scenario.name, config.sample_rate_hz)?;
+    probe(Probe::Dump);
     let start = signal.sample_index();
     let end = start + scenario.measured_samples() as u64;
     let gauge = StackGauge::paint(32 * 1024);
