@@ -7,7 +7,7 @@
 mod common;
 
 use aim_wire::Kind;
-use common::{wire, worst_case};
+use common::{sample_frames, wire, worst_case};
 
 /// Default uplink: USART3 at 921 600 baud, 8N1, so 10 bit times per byte.
 const BAUD: f64 = 921_600.0;
@@ -31,24 +31,37 @@ fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 4] {
     ]
 }
 
-/// Bytes per second on the wire when every frame has its worst-case size, and the table rows.
+/// Fraction of the link taken when every frame has its worst-case size; prints the table, with
+/// the load of typical frames (`common::sample_frames`, a 6-mic Hello) beside it.
 fn load(config: &aim_dsp::Config, label: &str) -> f64 {
-    let mut bytes_per_s = 0.0;
+    let (mut worst_per_s, mut typical_per_s) = (0.0, 0.0);
     println!("{label}:");
+    println!("  kind    rate/s  worst B  worst B/s  typical B  typical B/s");
     for (kind, rate) in rates(config) {
-        let size = wire(&worst_case(kind)).len();
-        assert_eq!(size, kind.max_encoded_len());
+        let worst = wire(&worst_case(kind)).len();
+        assert_eq!(worst, kind.max_encoded_len());
+        let typical = sample_frames()
+            .iter()
+            .find(|f| f.body.kind() == kind)
+            .map(|f| wire(f).len())
+            .expect("a sample frame of every kind");
+        let row = (rate * worst as f64, rate * typical as f64);
         println!(
-            "  {:7} {:6.2}/s x {:3} B = {:8.1} B/s",
+            "  {:7} {rate:6.2} {worst:8} {:10.1} {typical:10} {:12.1}",
             kind.name(),
-            rate,
-            size,
-            rate * size as f64
+            row.0,
+            row.1
         );
-        bytes_per_s += rate * size as f64;
+        worst_per_s += row.0;
+        typical_per_s += row.1;
     }
-    let utilisation = bytes_per_s * BITS_PER_BYTE / BAUD;
-    println!("  total {bytes_per_s:.1} B/s = {:.2} % of {BAUD} baud", 100.0 * utilisation);
+    let utilisation = worst_per_s * BITS_PER_BYTE / BAUD;
+    let typical = typical_per_s * BITS_PER_BYTE / BAUD;
+    println!(
+        "  worst case {worst_per_s:.1} B/s = {:.2} % of {BAUD} baud; typical {typical_per_s:.1} B/s = {:.2} %",
+        100.0 * utilisation,
+        100.0 * typical
+    );
     utilisation
 }
 
