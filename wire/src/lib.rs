@@ -39,6 +39,9 @@
 //! | `Peaks::bpf_chz`, `Peak::freq_chz` | u32 | 0.01 Hz | 0–42.9 MHz |
 //! | `Peak::amplitude_ddb` | i16 | 0.1 dB | ±3276.7 dB |
 //! | `Hello::mic_positions_decimm` | i16 | 0.1 mm | ±3.2767 m |
+//! | `Health::peak_ddbfs` | i16 | 0.1 dB | ±3276.7 dBFS |
+//! | `span_samples`, `sample_rate_hz`, counters | u32 | 1 | exact |
+//! | header `sample_index` | u64 | 1 sample | exact (LEB128 at 48 kHz: 3 bytes to 43 s, 4 to 93 min, 5 to 8 days) |
 //!
 //! Quantisation rounds half away from zero and saturates ([`Doa::new`], [`Peak::new`], …).
 //!
