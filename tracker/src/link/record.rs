@@ -85,4 +85,23 @@ mod tests {
         assert_eq!(stats.framing_errors + stats.crc_errors, 1, "the noise");
         assert!(reads >= 1);
     }
+
+    #[test]
+    fn a_quiet_port_stops_at_the_deadline() {
+        // A port that only ever times out, like an unplugged board's: the deadline still ends
+        // the recording (the test would hang otherwise), with nothing written.
+        struct Quiet;
+        impl Read for Quiet {
+            fn read(&mut self, _: &mut [u8]) -> io::Result<usize> {
+                std::thread::sleep(std::time::Duration::from_millis(5));
+                Err(io::Error::new(io::ErrorKind::TimedOut, "no data"))
+            }
+        }
+        let mut out = Vec::new();
+        let deadline = Some(Instant::now() + std::time::Duration::from_millis(30));
+        let stats =
+            record(&mut Quiet, &mut out, Until { deadline, frames: None }, &mut |_| {}).unwrap();
+        assert!(out.is_empty());
+        assert_eq!(stats.bytes, 0);
+    }
 }
