@@ -61,7 +61,7 @@
 //!    of other versions ([`LinkStats::unknown_versions`]).
 //!
 //! Golden byte snapshots of every kind live in `wire/tests/golden/`; `AIM_WIRE_BLESS=1 cargo
-//! test -p aim-wire --test golden` rewrites them after an intended change (which rule 4 says is
+//! test -p aim-wire --test format` rewrites them after an intended change (which rule 4 says is
 //! a version bump unless it only appends).
 //!
 //! # Example
