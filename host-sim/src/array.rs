@@ -1,0 +1,138 @@
+//! Microphone arrays: geometry presets, placement, imperfections and sample clock.
+//!
+//! Array frame: x right, y forward, z up (the array normal); microphones lie in the plane
+//! z = 0. The array is placed at `position_m` (ENU) with its x axis at `yaw_rad` from ENU +x
+//! towards +y, facing up. Azimuth is measured from the array's +x towards +y, the zenith from
+//! +z; the direction vector u points from the array towards the source.
+use nalgebra::Vector3;
+
+/// Microphone positions of a named preset, array frame, metres. The presets match `aim-dsp`'s
+/// `Geometry` constructors: `respeaker-6mic` (circle r = 0.0463 m, mic 0 on +x,
+/// counter-clockwise), `respeaker-4mic` (square of side 0.065 m, centred, mic 0 at +x+y,
+/// counter-clockwise), `circle-8mic` (circle r = 0.0463 m, mic 0 on +x, counter-clockwise).
+pub fn preset_positions(name: &str) -> Option<Vec<[f64; 2]>> {
+    let circle = |n: usize, r: f64, start_deg: f64| {
+        (0..n)
+            .map(|i| {
+                let a = (start_deg + 360.0 * i as f64 / n as f64).to_radians();
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect()
+    };
+    match name {
+        "respeaker-6mic" => Some(circle(6, 0.0463, 0.0)),
+        "respeaker-4mic" => Some(circle(4, 0.065 / std::f64::consts::SQRT_2, 45.0)),
+        "circle-8mic" => Some(circle(8, 0.0463, 0.0)),
+        _ => None,
+    }
+}
+
+/// Names of the geometry presets.
+pub const GEOMETRY_PRESETS: &[&str] = &["respeaker-6mic", "respeaker-4mic", "circle-8mic"];
+
+/// Sample clock of an array relative to true time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clock {
+    /// True time at which the array takes its sample 0, s.
+    pub offset_s: f64,
+    /// Clock rate error, parts per million (positive: the array samples fast).
+    pub drift_ppm: f64,
+}
+
+impl Clock {
+    /// True time of the array's sample `n` at nominal rate `sample_rate_hz`, s.
+    pub fn time_of_sample(&self, n: u64, sample_rate_hz: f64) -> f64 {
+        self.offset_s + n as f64 / (sample_rate_hz * (1.0 + self.drift_ppm * 1e-6))
+    }
+}
+
+/// One array as the scenario places it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ArrayConfig {
+    /// Array id (as in the frame header).
+    pub id: u8,
+    /// Geometry preset name, or `custom`.
+    pub geometry: String,
+    /// Microphone positions, array frame, m.
+    pub positions: Vec<[f64; 2]>,
+    /// Array centre, ENU m.
+    pub position_m: Vector3<f64>,
+    /// Rotation of the array's x axis from ENU +x towards +y, rad.
+    pub yaw_rad: f64,
+    /// Sample clock.
+    pub clock: Clock,
+    /// Self-noise of each microphone as an equivalent sound pressure level, dB re 20 µPa
+    /// (white, full band).
+    pub self_noise_db: f64,
+    /// Standard deviation of the microphones' gain error, dB.
+    pub gain_mismatch_db: f64,
+    /// Standard deviation of the microphones' delay (phase) error, µs.
+    pub phase_mismatch_us: f64,
+}
+
+impl ArrayConfig {
+    /// World position of microphone `i`, ENU m.
+    pub fn mic_position(&self, i: usize) -> Vector3<f64> {
+        let [x, y] = self.positions[i];
+        let (s, c) = self.yaw_rad.sin_cos();
+        self.position_m + Vector3::new(c * x - s * y, s * x + c * y, 0.0)
+    }
+
+    /// Checks the array; names the problem.
+    pub fn validate(&self) -> Result<(), String> {
+        let n = self.positions.len();
+        if !(4..=8).contains(&n) {
+            return Err(format!("array {}: {n} microphones, the pipeline takes 4 to 8", self.id));
+        }
+        if self.positions.iter().flatten().any(|v| !v.is_finite())
+            || !(self.position_m.iter().all(|v| v.is_finite()) && self.yaw_rad.is_finite())
+        {
+            return Err(format!("array {}: positions and yaw must be finite numbers", self.id));
+        }
+        if !(self.clock.drift_ppm.abs() < 1000.0 && self.clock.offset_s.abs() < 10.0) {
+            return Err(format!(
+                "array {}: clock drift must be under 1000 ppm and offset under 10 s",
+                self.id
+            ));
+        }
+        if !(self.gain_mismatch_db >= 0.0
+            && self.phase_mismatch_us >= 0.0
+            && self.self_noise_db.is_finite())
+        {
+            return Err(format!("array {}: mismatches must not be negative", self.id));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn respeaker_6mic_neighbours_are_4_6_cm_apart() {
+        let p = preset_positions("respeaker-6mic").unwrap();
+        let d = ((p[0][0] - p[1][0]).powi(2) + (p[0][1] - p[1][1]).powi(2)).sqrt();
+        assert!((d - 0.0463).abs() < 1e-12);
+        let q = preset_positions("respeaker-4mic").unwrap();
+        let side = ((q[0][0] - q[1][0]).powi(2) + (q[0][1] - q[1][1]).powi(2)).sqrt();
+        assert!((side - 0.065).abs() < 1e-12);
+    }
+
+    #[test]
+    fn yaw_rotates_the_array_counter_clockwise() {
+        let a = ArrayConfig {
+            id: 1,
+            geometry: "respeaker-6mic".into(),
+            positions: preset_positions("respeaker-6mic").unwrap(),
+            position_m: Vector3::new(1.0, 2.0, 0.5),
+            yaw_rad: std::f64::consts::FRAC_PI_2,
+            clock: Clock { offset_s: 0.0, drift_ppm: 0.0 },
+            self_noise_db: 30.0,
+            gain_mismatch_db: 0.0,
+            phase_mismatch_us: 0.0,
+        };
+        // Mic 0 on the array's +x, which points along ENU +y.
+        assert!((a.mic_position(0) - Vector3::new(1.0, 2.0463, 0.5)).norm() < 1e-12);
+    }
+}

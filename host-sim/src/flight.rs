@@ -1,0 +1,368 @@
+//! Multirotor flight by rigid-body physics.
+//!
+//! The airframe is a rigid body (mass, diagonal inertia) pushed by its rotors: rotor i gives
+//! thrust `Tᵢ = k_v εᵢ wᵢ fᵢ²` along body z at its hub and a reaction torque `−sᵢ k_h fᵢ²` about
+//! body z (εᵢ: coaxial efficiency, wᵢ: wake factor, sᵢ: spin). Quadratic body drag, gravity.
+//! A cascaded controller (position P → velocity PI → thrust vector and attitude on SO(3) →
+//! body-rate PI → mixer) follows the flight plan; the mixer turns thrust and torques into rotor
+//! speeds, the motors follow with a first-order lag, and an Ornstein–Uhlenbeck jitter stands for
+//! the ESC's imperfect speed loop. Rotor speeds are whatever this loop makes them: nothing here
+//! uses the tracker's simplified equations.
+//!
+//! Wake model (stated, not measured): in horizontal flight at airspeed v_h (body frame), a rotor
+//! whose arm points downstream loses thrust, `wᵢ = 1 − κ · max(0, −d̂ᵢ · v_h)`, κ =
+//! `wake_loss_per_mps`. The controller does not know this; its rate integrator finds the rear
+//! rotors' extra speed, which grows with flight speed as the paper observes (§VII-C).
+use nalgebra::{DMatrix, Matrix3, UnitQuaternion, Vector3};
+use rand::{rngs::StdRng, Rng, SeedableRng};
+
+use crate::path::FlightPlan;
+use crate::profile::{DroneProfile, RotorMount, GRAVITY_MPS2};
+
+/// Controller and integrator settings. Gains are in units of the closed-loop bandwidth (1/s) so
+/// they suit any airframe size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ControlGains {
+    /// Position error to velocity command, 1/s.
+    pub position: f64,
+    /// Velocity error to acceleration command, 1/s.
+    pub velocity: f64,
+    /// Velocity error integral gain, 1/s².
+    pub velocity_integral: f64,
+    /// Attitude error to rate command, roll/pitch, 1/s.
+    pub attitude: f64,
+    /// Attitude error to rate command, yaw, 1/s.
+    pub yaw: f64,
+    /// Rate error to angular acceleration, 1/s.
+    pub rate: f64,
+    /// Rate error integral to angular acceleration, 1/s².
+    pub rate_integral: f64,
+    /// Largest tilt the controller commands, rad.
+    pub max_tilt_rad: f64,
+}
+
+impl Default for ControlGains {
+    fn default() -> Self {
+        Self {
+            position: 1.0,
+            velocity: 2.5,
+            velocity_integral: 0.5,
+            attitude: 8.0,
+            yaw: 3.0,
+            rate: 25.0,
+            rate_integral: 40.0,
+            max_tilt_rad: 30f64.to_radians(),
+        }
+    }
+}
+
+/// State of the flight at one control step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FlightSample {
+    /// Time, s (scenario time; negative before the scenario starts).
+    pub t_s: f64,
+    /// Centre-of-mass position, ENU m.
+    pub position: Vector3<f64>,
+    /// Velocity, m/s.
+    pub velocity: Vector3<f64>,
+    /// Acceleration (specific force plus gravity, i.e. d²p/dt²), m/s².
+    pub acceleration: Vector3<f64>,
+    /// Attitude, body (x forward, y left, z up) to ENU.
+    pub attitude: UnitQuaternion<f64>,
+    /// Rotor speeds, Hz (revolutions per second), jitter included.
+    pub rotor_hz: Vec<f64>,
+}
+
+impl FlightSample {
+    /// Heading: angle of the body x axis from ENU +x towards +y, rad.
+    pub fn yaw_rad(&self) -> f64 {
+        self.attitude.euler_angles().2
+    }
+}
+
+/// A flown trajectory at a fixed step.
+#[derive(Clone, Debug)]
+pub struct FlightLog {
+    /// Time of the first sample, s.
+    pub t0_s: f64,
+    /// Step between samples, s.
+    pub dt_s: f64,
+    /// The samples.
+    pub samples: Vec<FlightSample>,
+    /// Rotor mounts (body frame), in rotor order.
+    pub rotors: Vec<RotorMount>,
+}
+
+impl FlightLog {
+    /// Index and fraction of time `t_s` between samples (clamped to the log).
+    pub fn locate(&self, t_s: f64) -> (usize, f64) {
+        let x = (t_s - self.t0_s) / self.dt_s;
+        let last = self.samples.len() - 1;
+        if x <= 0.0 {
+            return (0, 0.0);
+        }
+        let i = x.floor() as usize;
+        if i >= last {
+            return (last.saturating_sub(1), if last == 0 { 0.0 } else { 1.0 });
+        }
+        (i, x - i as f64)
+    }
+
+    /// World position of rotor `rotor`'s hub at time `t_s`, linearly interpolated, ENU m.
+    pub fn rotor_position(&self, rotor: usize, t_s: f64) -> Vector3<f64> {
+        let (i, f) = self.locate(t_s);
+        let at = |s: &FlightSample| s.position + s.attitude * self.rotors[rotor].position_m;
+        let a = at(&self.samples[i]);
+        if f == 0.0 || i + 1 >= self.samples.len() {
+            return a;
+        }
+        a + (at(&self.samples[i + 1]) - a) * f
+    }
+
+    /// Centre-of-mass position at time `t_s`, linearly interpolated, ENU m.
+    pub fn position(&self, t_s: f64) -> Vector3<f64> {
+        let (i, f) = self.locate(t_s);
+        let a = self.samples[i].position;
+        if i + 1 >= self.samples.len() {
+            return a;
+        }
+        a + (self.samples[i + 1].position - a) * f
+    }
+
+    /// Speed of rotor `rotor` at time `t_s`, linearly interpolated, Hz.
+    pub fn rotor_hz(&self, rotor: usize, t_s: f64) -> f64 {
+        let (i, f) = self.locate(t_s);
+        let a = self.samples[i].rotor_hz[rotor];
+        if i + 1 >= self.samples.len() {
+            return a;
+        }
+        a + (self.samples[i + 1].rotor_hz[rotor] - a) * f
+    }
+}
+
+/// Time span and step of a flight simulation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Span {
+    /// First time, s.
+    pub t0_s: f64,
+    /// Last time (at least), s.
+    pub t1_s: f64,
+    /// Controller step and log interval, s (physics integrates at a quarter of it).
+    pub dt_s: f64,
+}
+
+/// Flies `plan` with `profile` over `span`. The drone starts hovering at the plan's position at
+/// `span.t0_s` with heading `yaw_rad`, which it holds. `seed` seeds the rotor-speed jitter.
+pub fn fly(
+    profile: &DroneProfile,
+    plan: &FlightPlan,
+    yaw_rad: f64,
+    gains: &ControlGains,
+    span: Span,
+    seed: u64,
+) -> FlightLog {
+    let Span { t0_s, t1_s, dt_s } = span;
+    const SUBSTEPS: usize = 4;
+    let rotors = profile.rotors();
+    let n = rotors.len();
+    let m = profile.mass_kg;
+    let kv = profile.thrust_coefficient();
+    let kh = kv * profile.torque_to_thrust_m;
+    let inertia = Matrix3::from_diagonal(&Vector3::from(profile.inertia_kgm2));
+    let inertia_inv = inertia.try_inverse().expect("positive inertia");
+    let g = Vector3::new(0.0, 0.0, GRAVITY_MPS2);
+
+    // Allocation: [ΣT, τx, τy, τz]ᵀ = B·T. The controller's model knows coaxial efficiency (it
+    // is a property of the airframe) but not the wake.
+    let mut b = DMatrix::<f64>::zeros(4, n);
+    for (i, r) in rotors.iter().enumerate() {
+        b[(0, i)] = 1.0;
+        b[(1, i)] = r.position_m.y;
+        b[(2, i)] = -r.position_m.x;
+        b[(3, i)] = -r.spin * profile.torque_to_thrust_m;
+    }
+    let mixer = b.clone().pseudo_inverse(1e-12).expect("allocation matrix has full rank");
+
+    let mut rng = StdRng::seed_from_u64(seed);
+    let gauss = |rng: &mut StdRng| -> f64 {
+        // Box–Muller; one value per call keeps the sequence simple and reproducible.
+        let u1: f64 = rng.random::<f64>().max(1e-300);
+        let u2: f64 = rng.random();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    };
+
+    let start = plan.at(t0_s).position;
+    let mut p = start;
+    let mut v = Vector3::zeros();
+    let mut q = UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad);
+    let mut w = Vector3::zeros();
+    let hover: Vec<f64> =
+        rotors.iter().map(|r| (m * GRAVITY_MPS2 / (n as f64 * kv * r.efficiency)).sqrt()).collect();
+    let mut motor = hover.clone();
+    let mut jitter = vec![0.0; n];
+    let mut vel_integral = Vector3::zeros();
+    let mut rate_integral = Vector3::zeros();
+    let mut accel = Vector3::zeros();
+
+    let steps = ((t1_s - t0_s) / dt_s).ceil() as usize + 1;
+    let mut samples = Vec::with_capacity(steps);
+    let h = dt_s / SUBSTEPS as f64;
+    let jitter_sigma = profile.rotor_jitter * profile.hover_rotor_hz;
+    let jitter_decay = (-h / profile.rotor_jitter_time_s).exp();
+    let jitter_kick = jitter_sigma * (1.0 - jitter_decay * jitter_decay).sqrt();
+    let max_hz = profile.max_rotor_hz;
+    let drag = |v: Vector3<f64>| {
+        let vh = Vector3::new(v.x, v.y, 0.0);
+        -(vh * vh.norm() * profile.drag_h)
+            - Vector3::new(0.0, 0.0, v.z * v.z.abs() * profile.drag_v)
+    };
+
+    for k in 0..steps {
+        let t = t0_s + k as f64 * dt_s;
+        let rotor_hz: Vec<f64> = motor.iter().zip(&jitter).map(|(f, j)| (f + j).max(0.0)).collect();
+        samples.push(FlightSample {
+            t_s: t,
+            position: p,
+            velocity: v,
+            acceleration: accel,
+            attitude: q,
+            rotor_hz: rotor_hz.clone(),
+        });
+
+        // ---- Controller (once per control step) ----
+        let r = plan.at(t);
+        let v_cmd = r.velocity + (r.position - p) * gains.position;
+        let v_err = v_cmd - v;
+        vel_integral += v_err * dt_s;
+        let vi_max = 2.0 / gains.velocity_integral.max(1e-9);
+        vel_integral = vel_integral.map(|x| x.clamp(-vi_max, vi_max));
+        let a_cmd =
+            r.acceleration + v_err * gains.velocity + vel_integral * gains.velocity_integral;
+        // Desired force, drag feed-forward from the airframe model, tilt limited.
+        let mut f_des = (a_cmd + g) * m - drag(v);
+        f_des.z = f_des.z.max(0.2 * m * GRAVITY_MPS2);
+        let horiz = Vector3::new(f_des.x, f_des.y, 0.0);
+        let max_h = f_des.z * gains.max_tilt_rad.tan();
+        if horiz.norm() > max_h {
+            let s = max_h / horiz.norm();
+            f_des.x *= s;
+            f_des.y *= s;
+        }
+        let z_des = f_des.normalize();
+        let x_c = Vector3::new(yaw_rad.cos(), yaw_rad.sin(), 0.0);
+        let y_des = z_des.cross(&x_c).normalize();
+        let x_des = y_des.cross(&z_des);
+        let r_des = Matrix3::from_columns(&[x_des, y_des, z_des]);
+        let rot = q.to_rotation_matrix().into_inner();
+        let thrust_cmd = f_des.dot(&(rot * Vector3::z()));
+        // Attitude error on SO(3) (Lee, Leok, McClamroch 2010).
+        let e_m = r_des.transpose() * rot - rot.transpose() * r_des;
+        let e_r = Vector3::new(e_m[(2, 1)], e_m[(0, 2)], e_m[(1, 0)]) * 0.5;
+        let w_des =
+            -Vector3::new(e_r.x * gains.attitude, e_r.y * gains.attitude, e_r.z * gains.yaw);
+        let w_err = w_des - w;
+        rate_integral += w_err * dt_s;
+        rate_integral = rate_integral.map(|x| x.clamp(-2.0, 2.0));
+        let alpha_cmd = w_err * gains.rate + rate_integral * gains.rate_integral;
+        let tau_cmd = inertia * alpha_cmd + w.cross(&(inertia * w));
+        let u = nalgebra::DVector::from_vec(vec![thrust_cmd, tau_cmd.x, tau_cmd.y, tau_cmd.z]);
+        let thrusts = &mixer * u;
+        let command: Vec<f64> = (0..n)
+            .map(|i| (thrusts[i].max(0.0) / (kv * rotors[i].efficiency)).sqrt().min(max_hz))
+            .collect();
+
+        // ---- Physics ----
+        for _ in 0..SUBSTEPS {
+            let v_body = q.inverse() * v;
+            let mut force_body = 0.0;
+            let mut torque = Vector3::zeros();
+            for (i, rm) in rotors.iter().enumerate() {
+                motor[i] += (command[i] - motor[i]) * (h / profile.motor_time_constant_s);
+                jitter[i] = jitter[i] * jitter_decay + jitter_kick * gauss(&mut rng);
+                let f = (motor[i] + jitter[i]).clamp(0.0, max_hz);
+                let arm = Vector3::new(rm.position_m.x, rm.position_m.y, 0.0);
+                let downstream = if arm.norm() > 0.0 {
+                    (-(arm / arm.norm()).dot(&Vector3::new(v_body.x, v_body.y, 0.0))).max(0.0)
+                } else {
+                    0.0
+                };
+                let wake = (1.0 - profile.wake_loss_per_mps * downstream).max(0.5);
+                let thrust = kv * rm.efficiency * wake * f * f;
+                force_body += thrust;
+                torque += rm.position_m.cross(&Vector3::new(0.0, 0.0, thrust));
+                torque.z -= rm.spin * kh * f * f;
+            }
+            let force = q * Vector3::new(0.0, 0.0, force_body) + drag(v) - g * m;
+            accel = force / m;
+            v += accel * h;
+            p += v * h;
+            let w_dot = inertia_inv * (torque - w.cross(&(inertia * w)));
+            w += w_dot * h;
+            q *= UnitQuaternion::from_scaled_axis(w * h);
+        }
+    }
+    FlightLog { t0_s, dt_s, samples, rotors }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::path::{square, FlightPlan};
+
+    fn plan_square() -> FlightPlan {
+        FlightPlan::new(&square([0.0, 0.0], 5.0, 2.0, false, 1), 1.5, 1.0, 2.0, 0.5, 2.0).unwrap()
+    }
+
+    #[test]
+    fn hover_balances_weight_at_164_hz() {
+        let profile = DroneProfile { rotor_jitter: 0.0, ..DroneProfile::dji_mini_2() };
+        let plan =
+            FlightPlan::new(&[Vector3::new(0.0, 0.0, 2.0)], 1.0, 1.0, 5.0, 0.0, 0.0).unwrap();
+        let log = fly(
+            &profile,
+            &plan,
+            0.0,
+            &ControlGains::default(),
+            Span { t0_s: 0.0, t1_s: 3.0, dt_s: 1e-3 },
+            1,
+        );
+        let last = log.samples.last().unwrap();
+        for f in &last.rotor_hz {
+            assert!((f - 164.0).abs() < 0.01, "{f}");
+        }
+        assert!((last.position - Vector3::new(0.0, 0.0, 2.0)).norm() < 1e-6);
+    }
+
+    #[test]
+    fn follows_the_square_and_rear_rotors_speed_up_in_forward_flight() {
+        let profile = DroneProfile { rotor_jitter: 0.0, ..DroneProfile::dji_mini_2() };
+        let plan = plan_square();
+        let log = fly(
+            &profile,
+            &plan,
+            0.0,
+            &ControlGains::default(),
+            Span { t0_s: 0.0, t1_s: plan.duration_s(), dt_s: 1e-3 },
+            1,
+        );
+        let mut worst: f64 = 0.0;
+        for s in &log.samples {
+            worst = worst.max((s.position - plan.at(s.t_s).position).norm());
+        }
+        assert!(worst < 0.15, "tracking error {worst} m");
+        // First leg along +x with heading 0: rotors 1, 2 (index 0, 1) in front, 3, 4 behind.
+        // Mid-leg at cruise (leg starts at 2 s, ramp 2.36 s, cruise 4.36–5.34 s).
+        let s = &log.samples[(5.0 / 1e-3) as usize];
+        assert!((s.velocity.x - 1.5).abs() < 0.05, "{}", s.velocity.x);
+        let front = (s.rotor_hz[0] + s.rotor_hz[1]) / 2.0;
+        let rear = (s.rotor_hz[2] + s.rotor_hz[3]) / 2.0;
+        // Thrust balance: the rear pair loses κ·v·cos45° of thrust, so (rear/front)² ≈ 1/(1 − that).
+        let loss = 0.02 * 1.5 * std::f64::consts::FRAC_1_SQRT_2;
+        let expected = (1.0 / (1.0 - loss)).sqrt();
+        assert!(
+            ((rear / front) - expected).abs() < 0.002,
+            "rear/front {} vs {expected}",
+            rear / front
+        );
+    }
+}

@@ -1,0 +1,609 @@
+//! Scenarios: TOML files under `host-sim/scenarios/` describing a flight, the room, obstacles,
+//! noise and arrays. `Scenario::load` reads and checks one; every problem is reported with the
+//! file (and, where the TOML parser knows it, the line and column).
+//!
+//! A file may name a `base = "other.toml"` (relative to itself): the base is read first and
+//! this file's tables are merged into it key by key; arrays of tables (`[[array]]`, `[[noise]]`,
+//! `[[obstacle]]`) replace the base's list as a whole. Sweeps are written this way.
+//!
+//! Keys (units in the names; defaults in brackets):
+//!
+//! ```toml
+//! name = "square10-los"            # [file stem]
+//! description = "..."
+//! seed = 1                         # [1] every random draw derives from it
+//! sample_rate_hz = 48000           # [48000]
+//! duration_s = 40.0                # [the flight plan's duration]
+//! truth_rate_hz = 100.0            # [100]
+//! [air]       temperature_c = 20.0, humidity_percent = 50.0, pressure_pa = 101325.0
+//! [drone]     preset = "dji-mini-2", plus any `DroneProfile` field to override it
+//! [path]      kind = "square" | "waypoints" | "hover"
+//!             square: side_m, start = [x, y], height_m, clockwise [false], loops [1]
+//!             waypoints: points = [[x, y, z], ...];  hover: position = [x, y, z]
+//!             speed_mps [1.5], max_accel_mps2 [1.0], hover_start_s [3], corner_pause_s [0.5],
+//!             hover_end_s [3], yaw_deg [0]
+//! [room]      size_m = [Lx, Ly, Lz], absorption = α or [x0, x1, y0, y1, floor, ceiling] [0.2],
+//!             reflection_order [1]          (no [room]: free field)
+//! [[obstacle]] name, min = [x, y, z], max = [x, y, z], loss_db [20]
+//! [[noise]]   position = [x, y, z], centre_hz, bandwidth_hz [100], spl_db, distance_m [1]
+//! [diffuse_noise] spl_db, low_hz [100], high_hz [8000], directions [32]
+//! [[array]]   id, geometry ["respeaker-6mic"] or positions = [[x, y], ...], position = [x, y, z],
+//!             yaw_deg [0], clock_offset_s [0], clock_drift_ppm [0], self_noise_db [35],
+//!             gain_mismatch_db [0.3], phase_mismatch_us [2]
+//! [render]    rotor_sources = "each" | "centre" ["each"], block_samples [128],
+//!             control_rate_hz [1000], diffraction_ref_hz [500], absorption [true]
+//! ```
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, bail, Context as _};
+use nalgebra::Vector3;
+use serde::Deserialize;
+
+use crate::air::Air;
+use crate::array::{preset_positions, ArrayConfig, Clock, GEOMETRY_PRESETS};
+use crate::noise::{DiffuseNoise, NoiseSource};
+use crate::obstacle::Obstacle;
+use crate::path::{square, FlightPlan};
+use crate::profile::DroneProfile;
+use crate::room::Room;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileAir {
+    #[serde(default = "d_temp")]
+    temperature_c: f64,
+    #[serde(default = "d_hum")]
+    humidity_percent: f64,
+    #[serde(default = "d_press")]
+    pressure_pa: f64,
+}
+fn d_temp() -> f64 {
+    20.0
+}
+fn d_hum() -> f64 {
+    50.0
+}
+fn d_press() -> f64 {
+    101_325.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FilePath {
+    kind: String,
+    side_m: Option<f64>,
+    start: Option<[f64; 2]>,
+    height_m: Option<f64>,
+    #[serde(default)]
+    clockwise: bool,
+    #[serde(default = "d_one")]
+    loops: u32,
+    points: Option<Vec<[f64; 3]>>,
+    position: Option<[f64; 3]>,
+    #[serde(default = "d_speed")]
+    speed_mps: f64,
+    #[serde(default = "d_one_f")]
+    max_accel_mps2: f64,
+    #[serde(default = "d_hover")]
+    hover_start_s: f64,
+    #[serde(default = "d_pause")]
+    corner_pause_s: f64,
+    #[serde(default = "d_hover")]
+    hover_end_s: f64,
+    #[serde(default)]
+    yaw_deg: f64,
+}
+fn d_one() -> u32 {
+    1
+}
+fn d_one_f() -> f64 {
+    1.0
+}
+fn d_speed() -> f64 {
+    1.5
+}
+fn d_hover() -> f64 {
+    3.0
+}
+fn d_pause() -> f64 {
+    0.5
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum Absorption {
+    All(f64),
+    Each([f64; 6]),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileRoom {
+    size_m: [f64; 3],
+    absorption: Option<Absorption>,
+    #[serde(default = "d_one")]
+    reflection_order: u32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileObstacle {
+    name: Option<String>,
+    min: [f64; 3],
+    max: [f64; 3],
+    #[serde(default = "d_loss")]
+    loss_db: f64,
+}
+fn d_loss() -> f64 {
+    20.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileNoise {
+    position: [f64; 3],
+    centre_hz: f64,
+    #[serde(default = "d_bw")]
+    bandwidth_hz: f64,
+    spl_db: f64,
+    #[serde(default = "d_one_f")]
+    distance_m: f64,
+}
+fn d_bw() -> f64 {
+    100.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileDiffuse {
+    spl_db: f64,
+    #[serde(default = "d_low")]
+    low_hz: f64,
+    #[serde(default = "d_high")]
+    high_hz: f64,
+    #[serde(default = "d_dirs")]
+    directions: usize,
+}
+fn d_low() -> f64 {
+    100.0
+}
+fn d_high() -> f64 {
+    8000.0
+}
+fn d_dirs() -> usize {
+    32
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileArray {
+    id: u8,
+    geometry: Option<String>,
+    positions: Option<Vec<[f64; 2]>>,
+    position: [f64; 3],
+    #[serde(default)]
+    yaw_deg: f64,
+    #[serde(default)]
+    clock_offset_s: f64,
+    #[serde(default)]
+    clock_drift_ppm: f64,
+    #[serde(default = "d_self_noise")]
+    self_noise_db: f64,
+    #[serde(default = "d_gain_mm")]
+    gain_mismatch_db: f64,
+    #[serde(default = "d_phase_mm")]
+    phase_mismatch_us: f64,
+}
+fn d_self_noise() -> f64 {
+    35.0
+}
+fn d_gain_mm() -> f64 {
+    0.3
+}
+fn d_phase_mm() -> f64 {
+    2.0
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct FileRender {
+    rotor_sources: Option<RotorSources>,
+    block_samples: Option<usize>,
+    control_rate_hz: Option<f64>,
+    diffraction_ref_hz: Option<f64>,
+    absorption: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    name: Option<String>,
+    #[serde(default)]
+    description: String,
+    #[allow(dead_code)] // consumed before deserialization; listed so the key is accepted
+    base: Option<String>,
+    #[serde(default = "d_seed")]
+    seed: u64,
+    #[serde(default = "d_fs")]
+    sample_rate_hz: u32,
+    duration_s: Option<f64>,
+    #[serde(default = "d_truth")]
+    truth_rate_hz: f64,
+    air: Option<FileAir>,
+    drone: toml::Table,
+    path: FilePath,
+    room: Option<FileRoom>,
+    #[serde(default)]
+    obstacle: Vec<FileObstacle>,
+    #[serde(default)]
+    noise: Vec<FileNoise>,
+    diffuse_noise: Option<FileDiffuse>,
+    #[serde(default)]
+    array: Vec<FileArray>,
+    #[serde(default)]
+    render: FileRender,
+}
+fn d_seed() -> u64 {
+    1
+}
+fn d_fs() -> u32 {
+    48_000
+}
+fn d_truth() -> f64 {
+    100.0
+}
+
+/// How the rotors radiate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RotorSources {
+    /// Each rotor is a point source at its hub (faithful; cost grows with the rotor count).
+    Each,
+    /// All rotors radiate from the centre of mass (N times cheaper; no inter-rotor phase).
+    Centre,
+}
+
+/// Rendering settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Render {
+    /// How the rotors radiate.
+    pub rotor_sources: RotorSources,
+    /// Output samples per block of delay/gain interpolation.
+    pub block_samples: usize,
+    /// Flight controller and log rate, Hz.
+    pub control_rate_hz: f64,
+    /// Reference frequency of the diffraction loss, Hz.
+    pub diffraction_ref_hz: f64,
+    /// Whether air absorption is simulated.
+    pub absorption: bool,
+}
+
+/// A checked scenario, ready to simulate.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// Name (the file stem unless given).
+    pub name: String,
+    /// Free text.
+    pub description: String,
+    /// The file it came from, if any.
+    pub source: Option<PathBuf>,
+    /// Seed of every random draw.
+    pub seed: u64,
+    /// Nominal sample rate of the arrays, Hz.
+    pub sample_rate_hz: u32,
+    /// Simulated duration from t = 0, s.
+    pub duration_s: f64,
+    /// Rate of the truth rows, Hz.
+    pub truth_rate_hz: f64,
+    /// The air.
+    pub air: Air,
+    /// The drone.
+    pub drone: DroneProfile,
+    /// Its flight plan.
+    pub plan: FlightPlan,
+    /// Heading it holds, rad.
+    pub yaw_rad: f64,
+    /// The room (None: free field).
+    pub room: Option<Room>,
+    /// Obstacles.
+    pub obstacles: Vec<Obstacle>,
+    /// Point noise sources.
+    pub noise: Vec<NoiseSource>,
+    /// Diffuse noise.
+    pub diffuse_noise: Option<DiffuseNoise>,
+    /// Arrays.
+    pub arrays: Vec<ArrayConfig>,
+    /// Rendering settings.
+    pub render: Render,
+}
+
+/// Reads `path` as a TOML table, following `base` links (at most 8 deep).
+fn load_table(path: &Path, depth: usize) -> anyhow::Result<(toml::Table, bool)> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let table: toml::Table =
+        toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let Some(base) = table.get("base") else { return Ok((table, false)) };
+    if depth >= 8 {
+        bail!("{}: `base` chain longer than 8 files (a loop?)", path.display());
+    }
+    let base =
+        base.as_str().ok_or_else(|| anyhow!("{}: `base` must be a file name", path.display()))?;
+    let base_path = path.parent().unwrap_or(Path::new(".")).join(base);
+    let (mut merged, _) = load_table(&base_path, depth + 1)
+        .with_context(|| format!("{}: reading its base {}", path.display(), base_path.display()))?;
+    merge(&mut merged, table);
+    merged.remove("base");
+    merged.remove("name");
+    Ok((merged, true))
+}
+
+/// Merges `over` into `base`: tables recursively, everything else (arrays included) replaced.
+fn merge(base: &mut toml::Table, over: toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+impl Scenario {
+    /// Reads and checks a scenario file.
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let (table, based) = load_table(path, 0)?;
+        let file: File = if based {
+            table
+                .try_into()
+                .map_err(|e| anyhow!("{} (merged with its base): {e}", path.display()))?
+        } else {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?
+        };
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let mut s = Self::from_file(file, stem).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        s.source = Some(path.to_path_buf());
+        Ok(s)
+    }
+
+    /// Parses and checks scenario text (no `base`); `name` is used when the text has none.
+    pub fn from_toml(text: &str, name: &str) -> anyhow::Result<Self> {
+        let file: File = toml::from_str(text).map_err(|e| anyhow!("scenario `{name}`: {e}"))?;
+        if file.base.is_some() {
+            bail!("scenario `{name}`: `base` needs a file; use Scenario::load");
+        }
+        Self::from_file(file, name.to_string()).map_err(|e| anyhow!("scenario `{name}`: {e}"))
+    }
+
+    fn from_file(f: File, stem: String) -> Result<Self, String> {
+        let fs = f.sample_rate_hz;
+        if !(8_000..=192_000).contains(&fs) {
+            return Err(format!("sample_rate_hz {fs} is outside 8000..=192000"));
+        }
+        let air = f.air.map_or_else(Air::default, |a| Air {
+            temperature_c: a.temperature_c,
+            humidity_percent: a.humidity_percent,
+            pressure_pa: a.pressure_pa,
+        });
+        let air_ok = (-50.0..=60.0).contains(&air.temperature_c)
+            && (0.0..=100.0).contains(&air.humidity_percent)
+            && (10_000.0..=200_000.0).contains(&air.pressure_pa);
+        if !air_ok {
+            return Err(
+                "air: temperature −50..60 °C, humidity 0..100 %, pressure 10..200 kPa".into()
+            );
+        }
+
+        // Drone: a preset, then overrides.
+        let mut dt = f.drone;
+        let preset = match dt.remove("preset") {
+            Some(toml::Value::String(s)) => Some(s),
+            Some(_) => return Err("drone.preset must be a string".into()),
+            None => None,
+        };
+        let drone: DroneProfile = match preset {
+            Some(p) => {
+                let base = DroneProfile::preset(&p).ok_or_else(|| {
+                    format!(
+                        "drone.preset `{p}` is unknown (known: {})",
+                        DroneProfile::PRESETS.join(", ")
+                    )
+                })?;
+                let mut t = toml::Table::try_from(&base).map_err(|e| e.to_string())?;
+                merge(&mut t, dt);
+                t.try_into().map_err(|e: toml::de::Error| format!("drone: {}", e.message()))?
+            }
+            None => toml::Value::Table(dt)
+                .try_into()
+                .map_err(|e: toml::de::Error| format!("drone: {}", e.message()))?,
+        };
+        drone.validate()?;
+
+        let p = &f.path;
+        let need = |v: Option<f64>, key: &str| {
+            v.ok_or_else(|| format!("path.{key} is required for kind `{}`", p.kind))
+        };
+        let waypoints: Vec<Vector3<f64>> = match p.kind.as_str() {
+            "square" => {
+                let side = need(p.side_m, "side_m")?;
+                let height = need(p.height_m, "height_m")?;
+                let start = p.start.ok_or("path.start = [x, y] is required for kind `square`")?;
+                if !(side > 0.0 && height.is_finite()) {
+                    return Err("path.side_m must be positive".into());
+                }
+                square(start, side, height, p.clockwise, p.loops)
+            }
+            "waypoints" => p
+                .points
+                .as_ref()
+                .ok_or("path.points = [[x, y, z], ...] is required for kind `waypoints`")?
+                .iter()
+                .map(|q| Vector3::from(*q))
+                .collect(),
+            "hover" => vec![Vector3::from(
+                p.position.ok_or("path.position = [x, y, z] is required for kind `hover`")?,
+            )],
+            k => return Err(format!("path.kind `{k}` is unknown (square, waypoints, hover)")),
+        };
+        if waypoints.iter().flat_map(|w| w.iter()).any(|v| !v.is_finite()) {
+            return Err("path: waypoints must be finite".into());
+        }
+        if p.speed_mps > 20.0 {
+            return Err(format!(
+                "path.speed_mps {} is beyond what the drone model flies (20 m/s)",
+                p.speed_mps
+            ));
+        }
+        let plan = FlightPlan::new(
+            &waypoints,
+            p.speed_mps,
+            p.max_accel_mps2,
+            p.hover_start_s,
+            p.corner_pause_s,
+            p.hover_end_s,
+        )
+        .map_err(|e| format!("path: {e}"))?;
+        let duration_s = f.duration_s.unwrap_or(plan.duration_s());
+        if !(duration_s > 0.0 && duration_s <= 3600.0) {
+            return Err(format!("duration_s {duration_s} must be in (0, 3600]"));
+        }
+
+        let room = match f.room {
+            Some(r) => {
+                let absorption = match r.absorption {
+                    None => [0.2; 6],
+                    Some(Absorption::All(a)) => [a; 6],
+                    Some(Absorption::Each(a)) => a,
+                };
+                let room =
+                    Room { size_m: r.size_m, absorption, reflection_order: r.reflection_order };
+                room.validate()?;
+                Some(room)
+            }
+            None => None,
+        };
+        let obstacles: Vec<Obstacle> = f
+            .obstacle
+            .into_iter()
+            .enumerate()
+            .map(|(i, o)| Obstacle {
+                name: o.name.unwrap_or_else(|| format!("obstacle{}", i + 1)),
+                min: Vector3::from(o.min),
+                max: Vector3::from(o.max),
+                loss_db: o.loss_db,
+            })
+            .collect();
+        for o in &obstacles {
+            o.validate()?;
+        }
+        let noise: Vec<NoiseSource> = f
+            .noise
+            .into_iter()
+            .map(|n| NoiseSource {
+                position_m: Vector3::from(n.position),
+                centre_hz: n.centre_hz,
+                bandwidth_hz: n.bandwidth_hz,
+                spl_db: n.spl_db,
+                distance_m: n.distance_m,
+            })
+            .collect();
+        for n in &noise {
+            n.validate(fs as f64)?;
+        }
+        let diffuse_noise = f.diffuse_noise.map(|d| DiffuseNoise {
+            spl_db: d.spl_db,
+            low_hz: d.low_hz,
+            high_hz: d.high_hz,
+            directions: d.directions,
+        });
+        if let Some(d) = &diffuse_noise {
+            d.validate(fs as f64)?;
+        }
+
+        if f.array.is_empty() {
+            return Err("no [[array]]: the scenario needs at least one microphone array".into());
+        }
+        let mut arrays = Vec::new();
+        for a in f.array {
+            let (geometry, positions) = match (a.geometry, a.positions) {
+                (Some(_), Some(_)) => {
+                    return Err(format!(
+                        "array {}: give either geometry or positions, not both",
+                        a.id
+                    ))
+                }
+                (None, Some(p)) => ("custom".to_string(), p),
+                (g, None) => {
+                    let g = g.unwrap_or_else(|| "respeaker-6mic".into());
+                    let p = preset_positions(&g).ok_or_else(|| {
+                        format!(
+                            "array {}: geometry `{g}` is unknown (known: {})",
+                            a.id,
+                            GEOMETRY_PRESETS.join(", ")
+                        )
+                    })?;
+                    (g, p)
+                }
+            };
+            if arrays.iter().any(|x: &ArrayConfig| x.id == a.id) {
+                return Err(format!("array id {} appears twice", a.id));
+            }
+            let cfg = ArrayConfig {
+                id: a.id,
+                geometry,
+                positions,
+                position_m: Vector3::from(a.position),
+                yaw_rad: a.yaw_deg.to_radians(),
+                clock: Clock { offset_s: a.clock_offset_s, drift_ppm: a.clock_drift_ppm },
+                self_noise_db: a.self_noise_db,
+                gain_mismatch_db: a.gain_mismatch_db,
+                phase_mismatch_us: a.phase_mismatch_us,
+            };
+            cfg.validate()?;
+            arrays.push(cfg);
+        }
+
+        let render = Render {
+            rotor_sources: f.render.rotor_sources.unwrap_or(RotorSources::Each),
+            block_samples: f.render.block_samples.unwrap_or(crate::propagation::DEFAULT_BLOCK),
+            control_rate_hz: f.render.control_rate_hz.unwrap_or(1000.0),
+            diffraction_ref_hz: f.render.diffraction_ref_hz.unwrap_or(500.0),
+            absorption: f.render.absorption.unwrap_or(true),
+        };
+        if !(1..=4096).contains(&render.block_samples) {
+            return Err("render.block_samples must be in 1..=4096".into());
+        }
+        if !(200.0..=10_000.0).contains(&render.control_rate_hz) {
+            return Err("render.control_rate_hz must be in 200..=10000".into());
+        }
+        if render.diffraction_ref_hz.is_nan() || render.diffraction_ref_hz <= 0.0 {
+            return Err("render.diffraction_ref_hz must be positive".into());
+        }
+        if !(f.truth_rate_hz > 0.0 && f.truth_rate_hz <= render.control_rate_hz) {
+            return Err("truth_rate_hz must be positive and at most render.control_rate_hz".into());
+        }
+
+        Ok(Self {
+            name: f.name.unwrap_or(stem),
+            description: f.description,
+            source: None,
+            seed: f.seed,
+            sample_rate_hz: fs,
+            duration_s,
+            truth_rate_hz: f.truth_rate_hz,
+            air,
+            drone,
+            plan,
+            yaw_rad: p.yaw_deg.to_radians(),
+            room,
+            obstacles,
+            noise,
+            diffuse_noise,
+            arrays,
+            render,
+        })
+    }
+}

@@ -1,0 +1,113 @@
+//! The site file, `site.toml`: where the arrays are, for the tracker.
+//!
+//! Format (TOML; all positions ENU metres, angles in degrees):
+//!
+//! ```toml
+//! sample_rate_hz = 48000          # nominal sample rate of the arrays
+//! speed_of_sound_mps = 343.2      # in the simulated air
+//!
+//! [[array]]
+//! id = 1                          # array id, as in the frame header (0..=255)
+//! geometry = "respeaker-6mic"     # preset name, or "custom"
+//! positions = [[0.0463, 0.0], ...] # microphone positions in the array frame, m (always written)
+//! position = [8.0, 2.0, 0.05]     # array centre, ENU m
+//! yaw_deg = 0.0                   # array x axis from ENU +x towards +y, degrees; array faces up
+//! clock_offset_s = 0.0            # optional: true time of the array's sample 0 (simulation only)
+//! clock_drift_ppm = 0.0           # optional: the array's clock rate error (simulation only)
+//!
+//! [room]                          # optional
+//! size = [16.0, 16.0, 5.0]        # shoebox [0, Lx] × [0, Ly] × [0, Lz], m
+//!
+//! [[obstacle]]                    # optional, any number
+//! name = "shelf"
+//! min = [6.5, 7.6, 0.0]           # box corners, m
+//! max = [9.5, 8.4, 2.0]
+//! loss_db = 15.0
+//! ```
+//!
+//! Array frame: x right, y forward, z up (normal); azimuth from +x towards +y, zenith from +z.
+//! A reader needs `id`, `positions` (or a known `geometry`), `position` and `yaw_deg`; the rest
+//! is information.
+use std::path::Path;
+
+use anyhow::Context as _;
+use serde::{Deserialize, Serialize};
+
+/// One array in the site.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SiteArray {
+    /// Array id.
+    pub id: u8,
+    /// Geometry preset name, or `custom`.
+    pub geometry: String,
+    /// Microphone positions, array frame, m.
+    #[serde(default)]
+    pub positions: Vec<[f64; 2]>,
+    /// Array centre, ENU m.
+    pub position: [f64; 3],
+    /// Rotation of the array's x axis from ENU +x towards +y, degrees.
+    pub yaw_deg: f64,
+    /// True time of the array's sample 0, s (simulation knowledge; 0 if absent).
+    #[serde(default)]
+    pub clock_offset_s: f64,
+    /// Clock rate error, ppm (simulation knowledge; 0 if absent).
+    #[serde(default)]
+    pub clock_drift_ppm: f64,
+}
+
+/// The room, as far as the site file tells it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SiteRoom {
+    /// Shoebox dimensions, m.
+    pub size: [f64; 3],
+}
+
+/// An obstacle box.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SiteObstacle {
+    /// Name.
+    pub name: String,
+    /// Lowest corner, ENU m.
+    pub min: [f64; 3],
+    /// Highest corner, ENU m.
+    pub max: [f64; 3],
+    /// Transmission loss, dB.
+    pub loss_db: f64,
+}
+
+/// The site file's content.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Site {
+    /// Nominal sample rate, Hz.
+    pub sample_rate_hz: u32,
+    /// Speed of sound, m/s.
+    pub speed_of_sound_mps: f64,
+    /// The arrays.
+    #[serde(rename = "array")]
+    pub arrays: Vec<SiteArray>,
+    /// The room, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub room: Option<SiteRoom>,
+    /// Obstacles.
+    #[serde(default, rename = "obstacle", skip_serializing_if = "Vec::is_empty")]
+    pub obstacles: Vec<SiteObstacle>,
+}
+
+impl Site {
+    /// The TOML text, with a header comment.
+    pub fn to_toml(&self) -> anyhow::Result<String> {
+        let body = toml::to_string(self).context("serializing the site")?;
+        Ok(format!(
+            "# AIM site file written by host-sim. ENU metres; yaw_deg in degrees from +x towards +y;\n\
+             # arrays face up; microphone positions in the array frame (x right, y forward).\n{body}"
+        ))
+    }
+
+    /// Reads a site file.
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        toml::from_str(&text).with_context(|| format!("in site file {}", path.display()))
+    }
+}
