@@ -93,6 +93,22 @@ pub struct SaiPins {
     pub dma: Peri<'static, DMA1_CH0>,
 }
 
+/// Moves SAI1, its pins and its DMA stream out of the `embassy_stm32::Peripherals` `$p`:
+/// the board's capture pinout, in one place.
+#[macro_export]
+macro_rules! sai_pins {
+    ($p:ident) => {
+        $crate::capture::SaiPins {
+            sai: $p.SAI1,
+            sck: $p.PE5,
+            fs: $p.PE4,
+            sd: $p.PE6,
+            mclk: $p.PE2,
+            dma: $p.DMA1_CH0,
+        }
+    };
+}
+
 impl SaiCapture {
     /// Takes the pins and places the DMA ring in AXI SRAM. Call once.
     pub fn new(pins: SaiPins) -> Self {

@@ -12,7 +12,7 @@
 #![no_std]
 #![no_main]
 
-use aim_firmware::capture::{self, SaiCapture, SaiPins};
+use aim_firmware::capture::{self, SaiCapture};
 use aim_firmware::{clocks, config, processing, uplink};
 use cortex_m_rt::entry;
 use embassy_executor::{Executor, InterruptExecutor};
@@ -57,14 +57,7 @@ fn main() -> ! {
     watchdog.unleash();
 
     let (chunk_tx, chunk_rx) = capture::chunk_queue();
-    let sai = SaiCapture::new(SaiPins {
-        sai: p.SAI1,
-        sck: p.PE5,
-        fs: p.PE4,
-        sd: p.PE6,
-        mclk: p.PE2,
-        dma: p.DMA1_CH0,
-    });
+    let sai = SaiCapture::new(aim_firmware::sai_pins!(p));
     let uart = defmt::unwrap!(uplink::uplink_uart(p.USART3, p.PD8, p.DMA1_CH1));
     let processing = processing::Processing::new(cycles, watchdog);
 

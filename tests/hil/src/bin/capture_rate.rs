@@ -10,7 +10,7 @@
 #![no_std]
 #![no_main]
 
-use aim_firmware::capture::{self, ChunkReceiver, SaiCapture, SaiPins};
+use aim_firmware::capture::{self, ChunkReceiver, SaiCapture};
 use aim_firmware::config::{CHUNK_FRAMES, SAMPLE_RATE_HZ};
 use aim_firmware::stats::{read, COUNTERS};
 use aim_hil_tests::{board, check_range, pass};
@@ -65,14 +65,7 @@ async fn measure() {
 fn main() -> ! {
     let (p, _cycles) = board();
     let (chunk_tx, chunk_rx) = capture::chunk_queue();
-    let sai = SaiCapture::new(SaiPins {
-        sai: p.SAI1,
-        sck: p.PE5,
-        fs: p.PE4,
-        sd: p.PE6,
-        mclk: p.PE2,
-        dma: p.DMA1_CH0,
-    });
+    let sai = SaiCapture::new(aim_firmware::sai_pins!(p));
 
     interrupt::UART4.set_priority(Priority::P6);
     let spawner = EXECUTOR_CAPTURE.start(interrupt::UART4);

@@ -54,7 +54,8 @@ fn main() -> ! {
         ZENITH_DEG.to_radians(),
     );
     let block_len = config.block_len as u64;
-    let mut words = [0i32; CHUNK_WORDS];
+    // In AXI SRAM like the firmware's capture slots (and off the 11 KB stack being measured).
+    let words = aim_firmware::axisram_buffer!(i32, CHUNK_WORDS);
 
     let mut blocks = CycleStats::default();
     let mut block_cycles: u32 = 0;
@@ -64,9 +65,9 @@ fn main() -> ! {
     let chunks = SECONDS * u64::from(SAMPLE_RATE_HZ) / CHUNK_FRAMES as u64;
     for chunk in 0..chunks {
         let first = chunk * CHUNK_FRAMES as u64;
-        wave.fill(first, &mut words);
+        wave.fill(first, &mut words[..]);
         let start = cycles.now();
-        pipeline.push(&words, &mut |output| match output {
+        pipeline.push(&words[..], &mut |output| match output {
             Output::Doa(d) => {
                 doas += 1;
                 doa_az_err = doa_az_err.max(angle_error_cdeg(d.azimuth_rad, AZIMUTH_DEG));
