@@ -140,7 +140,9 @@ impl SaiCapture {
         );
         // Start the DMA right after the SAI: its FIFO (8 words) holds one frame, so the DMA
         // must run within 20 µs or the first frames shift slots.
-        if let Err(error) = sai.start() {
+        let started = sai.start();
+        enable_mclk_output();
+        if let Err(error) = started {
             return error;
         }
         loop {
@@ -152,6 +154,14 @@ impl SaiCapture {
             bump(&COUNTERS.chunks_captured);
         }
     }
+}
+
+/// Drives MCLK (12.288 MHz) on PE2 for ADCs that need a master clock: bit 27 of SAI_ACR1,
+/// MCKEN (RM0433, STM32H743 revision V), which embassy-stm32 0.6 / stm32-metapac 21 do not
+/// model. The bit clock and frame sync do not depend on it.
+fn enable_mclk_output() {
+    const MCKEN: u32 = 1 << 27;
+    embassy_stm32::pac::SAI1.ch(0).cr1().modify(|w| w.0 |= MCKEN);
 }
 
 /// Captures forever: runs [`SaiCapture::run`], and on every failure counts an overrun, logs it
