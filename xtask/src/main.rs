@@ -89,6 +89,7 @@ fn ci(root: &Path) -> Result<()> {
         ],
     )?;
     // Host output equals the Cortex-M4F model's bit for bit (the counts come with `budget`).
+    qemu::check_sources(root)?;
     qemu::parity(&qemu::build(root)?)?;
     // Builds the firmware release ELF for the board, then measures it.
     budget::run(root)

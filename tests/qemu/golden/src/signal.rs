@@ -120,6 +120,57 @@ mod tests {
     use super::*;
 
     #[test]
+    fn plane_wave_delays_match_the_far_field_law() {
+        // Mics 10 cm apart on x, and at the centre; source along +x (u = (1, 0)), zenith 90°.
+        let positions = [[-100, 0], [0, 0], [100, 0]];
+        let mut delays = [0u32; 3];
+        plane_wave_delays(&positions, [32_767, 0], 48_000, &mut delays);
+        // The mic at +x hears first; 0.1 m / 343 m/s · 48 kHz = 13.99 samples per 10 cm.
+        assert_eq!(delays, [28, 14, 0]);
+        // Oracle in f64 for an oblique direction and an irregular layout.
+        let positions = [[46, 0], [23, 40], [-23, 40], [-46, 0], [-23, -40], [23, -40]];
+        let u = [21_739, 18_241];
+        let mut delays = [0u32; 6];
+        plane_wave_delays(&positions, u, 48_000, &mut delays);
+        let arrival = |p: &[i32; 2]| {
+            -(f64::from(p[0]) * f64::from(u[0]) + f64::from(p[1]) * f64::from(u[1]))
+                / 32_768.0
+                / 1000.0
+                / 343.0
+                * 48_000.0
+        };
+        let earliest = positions.iter().map(arrival).fold(f64::INFINITY, f64::min);
+        for (p, d) in positions.iter().zip(delays) {
+            let exact = arrival(p) - earliest;
+            assert!((f64::from(d) - exact).abs() <= 1.0, "{p:?}: {d} vs {exact}");
+        }
+    }
+
+    #[test]
+    fn words_are_left_justified_delayed_copies_in_their_slots() {
+        let mut signal = Signal::new(&[0, 5], 4, 48_000, 7);
+        let mut words = [0i32; 4 * 256];
+        signal.fill(&mut words);
+        assert_eq!(signal.sample_index(), 256);
+        for frame in words.chunks_exact(4) {
+            assert_eq!(frame[0] & 0xFF, 0, "24-bit samples, left-justified");
+            assert_eq!(&frame[2..], &[0, 0], "slots without a microphone stay zero");
+        }
+        // Mic 1 is mic 0 five samples later, up to the noise (below 60 000 · 2 in 24 bits).
+        let tone = 2 * NOISE_AMPLITUDE as i64;
+        for t in 5..256 {
+            let m0 = i64::from(words[4 * (t - 5)] >> 8);
+            let m1 = i64::from(words[4 * t + 1] >> 8);
+            assert!((m0 - m1).abs() <= tone, "sample {t}: {m0} vs {m1}");
+        }
+        // The same seed gives the same words: both sides synthesise identical input.
+        let mut again = Signal::new(&[0, 5], 4, 48_000, 7);
+        let mut words2 = [0i32; 4 * 256];
+        again.fill(&mut words2);
+        assert_eq!(words, words2);
+    }
+
+    #[test]
     fn integer_sine_stays_close_to_sine() {
         for k in 0..4096u32 {
             let phase = k << 20;
