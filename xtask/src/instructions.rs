@@ -209,16 +209,19 @@ fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
 }
 
 /// The DSP stage an instruction belongs to, from its inline chain (function names, innermost
-/// first): the innermost function that names a stage decides. `None` for code outside
-/// `aim_dsp` (and code `aim_dsp` calls out of line, such as microfft's butterflies or libm):
-/// it is charged to the stage that calls it.
+/// first): the innermost function that names a stage decides; `aim_wire` code is the encode
+/// path. `None` for code outside `aim_dsp` and `aim_wire` (and code they call out of line,
+/// such as microfft's butterflies, libm or postcard): it is charged to the stage that calls it.
 pub fn classify(chain: &[String]) -> Option<Probe> {
-    if !chain.iter().any(|f| f.starts_with("aim_dsp::")) {
+    let in_crate = |name: &str| chain.iter().any(|f| f.starts_with(name));
+    if !in_crate("aim_dsp::") && !in_crate("aim_wire::") {
         return None;
     }
     for function in chain {
         let f = function.as_str();
-        let stage = if f.starts_with("aim_dsp::gcc_phat::phat_band")
+        let stage = if f.starts_with("aim_wire::") {
+            Probe::Encode
+        } else if f.starts_with("aim_dsp::gcc_phat::phat_band")
             || f.starts_with("aim_dsp::gcc_phat::accumulate_cross")
         {
             Probe::Phat
@@ -239,7 +242,7 @@ pub fn classify(chain: &[String]) -> Option<Probe> {
         };
         return Some(stage);
     }
-    Some(Probe::PipelineOther)
+    in_crate("aim_dsp::").then_some(Probe::PipelineOther)
 }
 
 /// Pairs the guest's `section` lines with the plugin's sections (same order) and collects the
@@ -482,6 +485,14 @@ mod tests {
         // Out-of-line shared code and the guest's own code: charged to the caller.
         assert_eq!(classify(&chain(&["microfft::impls::cfft::CFft::compute_butterflies"])), None);
         assert_eq!(classify(&chain(&["aim_golden::signal::Signal::fill"])), None);
+        // The encode path, inlined into the sink inside `push` or out of line.
+        let closure = "cost::measure::{closure#0}";
+        assert_eq!(
+            classify(&chain(&["aim_wire::from_dsp::doa", closure, push])),
+            Some(Probe::Encode)
+        );
+        assert_eq!(classify(&chain(&["aim_wire::crc32::crc32"])), Some(Probe::Encode));
+        assert_eq!(classify(&chain(&[closure, push])), Some(Probe::PipelineOther));
     }
 
     #[test]

@@ -18,4 +18,6 @@ pub mod scenario;
 
 /// The DSP crate the reports run, for the host side (`xtask`) to name `Pipeline`.
 pub use aim_dsp;
+/// The wire crate whose encode path the reports run.
+pub use aim_wire;
 pub mod signal;

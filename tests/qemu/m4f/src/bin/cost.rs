@@ -10,7 +10,11 @@
 use core::fmt::Write;
 
 use aim_golden::{
-    aim_dsp::Pipeline,
+    aim_dsp::{Output, Pipeline},
+    aim_wire::{
+        from_dsp::{self, FirmwareCounters},
+        Encoder, MAX_ENCODED_LEN,
+    },
     probe::Probe,
     report::{self, CHUNK_FRAMES, MAX_TDM_SLOTS},
     scenario::{Scenario, COST},
@@ -57,8 +61,20 @@ fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core:
     let mut signal = scenario.signal();
     let mut words = [0i32; CHUNK_FRAMES * MAX_TDM_SLOTS];
     let words = &mut words[..CHUNK_FRAMES * config.tdm_slots];
-    let mut outputs = 0u32;
-    let mut sink = |_| outputs += 1;
+    // As in the firmware: the sink keeps the outputs of a chunk, which are encoded into frames
+    // after `push` (charged to `encode`, not to the pipeline).
+    let mut encoder = Encoder::new(1);
+    let counters = FirmwareCounters::default();
+    let mut bytes = 0usize;
+    let mut encode = |pending: &mut Pending| {
+        let mut frame = [0u8; MAX_ENCODED_LEN];
+        for output in pending.outputs[..pending.len].iter().flatten() {
+            bytes +=
+                from_dsp::encode_output(&mut encoder, output, &counters, &mut frame).unwrap_or(0);
+        }
+        pending.len = 0;
+    };
+    let mut pending = Pending { outputs: [None; MAX_OUTPUTS_PER_CHUNK], len: 0 };
     // Warm-up (the BPF analysis window fills first): a section of its own, so that the
     // plugin's stage ranges do not charge it to the measured section.
     let warm_up = scenario.measured_samples() as u64 / 8;
@@ -66,8 +82,9 @@ fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core:
         probe(Probe::Input);
         signal.fill(words);
         probe(Probe::PipelineOther);
-        pipeline.push(words, &mut sink);
+        pipeline.push(words, &mut |output| pending.keep(output));
         probe(Probe::Untracked);
+        encode(&mut pending);
     }
     writeln!(out, "section warmup-{} {warm_up} {}", scenario.name, config.sample_rate_hz)?;
     probe(Probe::Dump);
@@ -78,15 +95,36 @@ fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core:
         probe(Probe::Input);
         signal.fill(words);
         probe(Probe::PipelineOther);
-        pipeline.push(words, &mut sink);
+        pipeline.push(words, &mut |output| pending.keep(output));
+        probe(Probe::Encode);
+        encode(&mut pending);
         probe(Probe::Untracked);
     }
     let stack = gauge.used();
-    core::hint::black_box(outputs);
+    core::hint::black_box(bytes);
     writeln!(out, "ram stack-{} {stack}", scenario.name)?;
     // Working memory of the DSP: the pipeline itself plus the deepest stack of `push`.
     writeln!(out, "ram dsp-{} {}", scenario.name, core::mem::size_of::<Pipeline>() + stack)?;
     writeln!(out, "section {} {} {}", scenario.name, end - start, config.sample_rate_hz)?;
     probe(Probe::Dump);
     Ok(())
+}
+
+/// Most outputs one chunk of 256 frames can complete (as in the firmware).
+const MAX_OUTPUTS_PER_CHUNK: usize = 8;
+
+/// The outputs of one `push`, waiting to be encoded.
+struct Pending {
+    outputs: [Option<Output>; MAX_OUTPUTS_PER_CHUNK],
+    len: usize,
+}
+
+impl Pending {
+    /// Keeps `output`; drops it if the chunk produced more than the firmware keeps.
+    fn keep(&mut self, output: Output) {
+        if let Some(slot) = self.outputs.get_mut(self.len) {
+            *slot = Some(output);
+            self.len += 1;
+        }
+    }
 }
