@@ -212,3 +212,97 @@ pub fn estimate_delay(
         peak_margin: (1.0 - second / peak).clamp(0.0, 1.0),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI as PI64;
+
+    /// Naive DFT bin k of a real sequence, f64: the oracle for microfft and the PHAT band.
+    fn dft(x: &[f32], k: usize) -> (f64, f64) {
+        let n = x.len() as f64;
+        x.iter().enumerate().fold((0.0, 0.0), |(re, im), (t, &v)| {
+            let a = -2.0 * PI64 * k as f64 * t as f64 / n;
+            (re + v as f64 * a.cos(), im + v as f64 * a.sin())
+        })
+    }
+
+    #[test]
+    fn phat_band_matches_naive_dft_phases() {
+        let mut state = 12345u32;
+        let x: Vec<f32> = (0..1024)
+            .map(|_| {
+                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (state >> 8) as f32 / (1 << 24) as f32 - 0.5
+            })
+            .collect();
+        let mut buf: [f32; 1024] = x.clone().try_into().unwrap();
+        let mut unit = [0.0f32; 2 * 128];
+        phat_band(microfft::real::rfft_1024(&mut buf), 5, &mut unit);
+        for b in 0..128 {
+            let (re, im) = dft(&x, 5 + b);
+            let m = (re * re + im * im).sqrt();
+            assert!((unit[2 * b] as f64 - re / m).abs() < 1e-4, "bin {}", 5 + b);
+            assert!((unit[2 * b + 1] as f64 - im / m).abs() < 1e-4, "bin {}", 5 + b);
+        }
+    }
+
+    #[test]
+    fn correlation_and_derivatives_match_direct_evaluation() {
+        let g: Vec<Complex32> = (0..120)
+            .map(|b| Complex32::new(libm::cosf(0.37 * b as f32), libm::sinf(1.3 * b as f32) * 0.5))
+            .collect();
+        for &tau in &[-11.3f32, -2.5, 0.0, 0.71, 6.04, 13.9] {
+            let [r, r1, r2] = correlation_derivatives(&g, 7, 1024, tau);
+            let (mut dr, mut dr1, mut dr2) = (0.0f64, 0.0f64, 0.0f64);
+            for (b, x) in g.iter().enumerate() {
+                let w = 2.0 * PI64 * (7 + b) as f64 / 1024.0;
+                let (s, c) = (w * tau as f64).sin_cos();
+                let re = x.re as f64 * c - x.im as f64 * s;
+                let im = x.re as f64 * s + x.im as f64 * c;
+                dr += re;
+                dr1 -= w * im;
+                dr2 -= w * w * re;
+            }
+            assert!((r as f64 - dr).abs() < 1e-3, "R({tau}) {r} vs {dr}");
+            assert!((r1 as f64 - dr1).abs() < 1e-3 * (1.0 + dr1.abs()), "R'({tau})");
+            assert!((r2 as f64 - dr2).abs() < 1e-3 * (1.0 + dr2.abs()), "R''({tau})");
+        }
+    }
+
+    fn pure_delay(delay: f32, first: usize, bins: usize) -> Vec<Complex32> {
+        (first..first + bins)
+            .map(|k| {
+                let a = -2.0 * core::f32::consts::PI * k as f32 * delay / 1024.0;
+                Complex32::new(libm::cosf(a), libm::sinf(a))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn pure_delays_are_recovered_across_the_lag_range() {
+        for i in 0..=60 {
+            let d = -14.5 + 29.0 * i as f32 / 60.0;
+            let e = estimate_delay(&pure_delay(d, 5, 124), 5, 1024, 16, 1);
+            assert!((e.delay_samples - d).abs() < 2e-3, "delay {d}: got {}", e.delay_samples);
+            assert!(e.coherence > 0.999 && e.peak_margin > 0.3, "{e:?}");
+        }
+    }
+
+    #[test]
+    fn a_second_path_lowers_the_peak_margin() {
+        let direct = pure_delay(2.0, 5, 124);
+        let echo = pure_delay(-9.0, 5, 124);
+        let mixed: Vec<Complex32> = direct.iter().zip(&echo).map(|(a, b)| a + b * 0.8).collect();
+        let clean = estimate_delay(&direct, 5, 1024, 16, 1);
+        let two = estimate_delay(&mixed, 5, 1024, 16, 1);
+        // The echo's side lobes pull the peak a little (physics, not error): still the direct path.
+        assert!((two.delay_samples - 2.0).abs() < 0.3, "{two:?}");
+        assert!(
+            two.peak_margin < 0.3 && two.peak_margin < clean.peak_margin,
+            "{two:?} vs {clean:?}"
+        );
+        // No coherent peak at all: nothing.
+        assert_eq!(estimate_delay(&[Complex32::new(0.0, 0.0); 50], 5, 1024, 16, 1).quality(), 0.0);
+    }
+}

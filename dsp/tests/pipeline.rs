@@ -1,0 +1,139 @@
+//! Streaming behaviour of the pipeline: chunking, rates, stamps, other geometries and rates,
+//! silence and clipping.
+
+mod common;
+
+use aim_dsp::{Config, Geometry, Output, Pipeline};
+use common::{add_noise, to_tdm, PeriodicSignal, Rng};
+
+/// A plane wave of band-limited noise plus a 448-bin harmonic comb, 20 dB SNR, exact delays.
+fn plane_wave(
+    geometry: &Geometry,
+    fs: f64,
+    n: usize,
+    az_deg: f64,
+    zen_deg: f64,
+    seed: u64,
+) -> Vec<i32> {
+    let mut rng = Rng::new(seed);
+    let mut s = PeriodicSignal::new(n);
+    s.add_broadband(fs, 150.0, fs.min(16_000.0) * 0.45, 0.02, &mut rng);
+    let comb = n * 328 / fs as usize; // a bin near 328 Hz
+    for h in 1..=8 {
+        s.add_tone_bin(comb * h, 0.02, rng.uniform() * 6.28);
+    }
+    let (az, zen) = (az_deg.to_radians(), zen_deg.to_radians());
+    let u = [zen.sin() * az.cos(), zen.sin() * az.sin()];
+    let channels: Vec<Vec<f64>> = geometry
+        .positions()
+        .iter()
+        .map(|p| {
+            let mut x = s.delayed(-(p[0] as f64 * u[0] + p[1] as f64 * u[1]) / 343.0 * fs);
+            add_noise(&mut x, 0.004, &mut rng);
+            x
+        })
+        .collect();
+    to_tdm(&channels, 8)
+}
+
+fn doas(outputs: &[Output]) -> Vec<aim_dsp::Doa> {
+    outputs.iter().filter_map(|o| if let Output::Doa(d) = o { Some(*d) } else { None }).collect()
+}
+
+#[test]
+fn outputs_do_not_depend_on_how_the_words_are_chunked() {
+    let g = Geometry::respeaker_6mic();
+    let words = plane_wave(&g, 48_000.0, 32_768, 120.0, 40.0, 1);
+    let config = Config::new(g, 48_000);
+    let mut whole = Pipeline::new(&config).unwrap();
+    let mut a = Vec::new();
+    whole.push(&words, &mut |o| a.push(o));
+    let mut chunked = Pipeline::new(&config).unwrap();
+    let b = common::run(&mut chunked, &words);
+    assert!(!a.is_empty());
+    assert_eq!(a, b, "identical bits whatever the chunking");
+}
+
+#[test]
+fn output_rates_and_stamps_at_48_khz() {
+    let g = Geometry::respeaker_6mic();
+    let words = plane_wave(&g, 48_000.0, 65_536, 10.0, 30.0, 2);
+    let mut p = Pipeline::new(&Config::new(g, 48_000)).unwrap();
+    let out = common::run(&mut p, &words);
+    let d = doas(&out);
+    // 64 blocks of 1024, 8 blocks per DoA.
+    assert_eq!(d.len(), 8);
+    for (k, x) in d.iter().enumerate() {
+        assert_eq!(x.sample_index, k as u64 * 8192);
+        assert_eq!(x.span_samples, 8192);
+    }
+    let health: Vec<_> = out
+        .iter()
+        .filter_map(|o| if let Output::Health(h) = o { Some(*h) } else { None })
+        .collect();
+    assert_eq!(health.len(), 1); // every 48 blocks
+    assert_eq!(health[0].blocks, 48);
+    assert_eq!(health[0].clipped_samples, 0);
+    assert!(health[0].peak_dbfs < -10.0 && health[0].peak_dbfs > -40.0, "{:?}", health[0]);
+}
+
+#[test]
+fn sixteen_khz_and_other_geometries_find_the_direction() {
+    let custom = Geometry::from_positions(&[
+        [0.04, 0.0],
+        [0.0, 0.03],
+        [-0.05, 0.01],
+        [-0.01, -0.045],
+        [0.03, -0.03],
+    ])
+    .unwrap();
+    for (g, fs) in [
+        (Geometry::respeaker_4mic(), 16_000.0),
+        (Geometry::respeaker_6mic(), 16_000.0),
+        (Geometry::circle_8mic(), 48_000.0),
+        (custom, 48_000.0),
+    ] {
+        for (az, zen) in [(-150.0f64, 35.0f64), (75.0, 65.0)] {
+            let words = plane_wave(&g, fs, 32_768, az, zen, 3);
+            let mut p = Pipeline::new(&Config::new(g, fs as u32)).unwrap();
+            let d = doas(&common::run(&mut p, &words));
+            assert!(d.len() >= 4, "{} mics at {fs}: {} DoA", g.len(), d.len());
+            for x in &d {
+                let daz =
+                    ((x.azimuth_rad as f64).to_degrees() - az + 540.0).rem_euclid(360.0) - 180.0;
+                let dzen = (x.zenith_rad as f64).to_degrees() - zen;
+                assert!(
+                    daz.abs() < 2.0 && dzen.abs() < 2.0,
+                    "{} mics at {fs}, ({az}, {zen}): got {x:?}",
+                    g.len()
+                );
+                assert!(x.residual < 0.2, "{x:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn silence_gives_no_direction_and_no_peaks_and_clipping_is_counted() {
+    let config = Config::new(Geometry::respeaker_4mic(), 48_000);
+    let mut p = Pipeline::new(&config).unwrap();
+    let out = common::run(&mut p, &vec![0; 8 * 49_152]);
+    assert!(doas(&out).is_empty());
+    for o in &out {
+        if let Output::Peaks(k) = o {
+            assert_eq!(k.count, 0);
+        }
+    }
+    // Full-scale square wave on mic 2: every sample clipped.
+    let mut words = vec![0i32; 8 * 49_152];
+    for (t, frame) in words.chunks_mut(8).enumerate() {
+        frame[2] = if (t / 24) % 2 == 0 { 0x7FFF_FF00 } else { -0x7FFF_FF00 };
+    }
+    let mut p = Pipeline::new(&config).unwrap();
+    let health: Vec<_> = common::run(&mut p, &words)
+        .into_iter()
+        .filter_map(|o| if let Output::Health(h) = o { Some(h) } else { None })
+        .collect();
+    assert_eq!(health[0].clipped_samples, 48 * 1024);
+    assert!(health[0].peak_dbfs > -0.1);
+}
