@@ -20,7 +20,7 @@ fn plane_wave(
     s.add_broadband(fs, 150.0, fs.min(16_000.0) * 0.45, 0.02, &mut rng);
     let comb = n * 328 / fs as usize; // a bin near 328 Hz
     for h in 1..=8 {
-        s.add_tone_bin(comb * h, 0.02, rng.uniform() * 6.28);
+        s.add_tone_bin(comb * h, 0.02, rng.uniform() * std::f64::consts::TAU);
     }
     let (az, zen) = (az_deg.to_radians(), zen_deg.to_radians());
     let u = [zen.sin() * az.cos(), zen.sin() * az.sin()];
