@@ -14,6 +14,7 @@ pub mod config;
 pub mod doa;
 pub mod dynamics;
 pub mod filter;
+pub mod intake;
 pub mod iqr;
 pub mod linalg;
 pub mod link;

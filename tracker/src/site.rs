@@ -1,6 +1,9 @@
 //! Site files: where the arrays are and how they face.
 //!
 //! ```toml
+//! sample_rate_hz = 48000       # optional: nominal sample rate of the arrays, Hz
+//! speed_of_sound_mps = 343.2   # optional, informative
+//!
 //! # one table per array
 //! [[array]]
 //! id = 0
@@ -9,11 +12,18 @@
 //! pitch_deg = 0.0              # optional: rotation about the array's y, degrees
 //! roll_deg = 0.0               # optional: rotation about the array's x, degrees
 //! geometry = "respeaker-6mic"  # optional, informative
+//! positions = [[0.0463, 0.0]]  # optional: microphone positions, array frame, m (informative)
+//! clock_offset_s = 0.0         # optional: true time of the array's sample 0, s
+//! clock_drift_ppm = 0.0        # optional: the array clock's rate error, ppm
 //!
-//! [room]                       # optional: the flight volume, world metres
+//! [room]                       # optional: the flight volume, world metres, either
 //! min = [-1.0, -1.0, 0.0]
 //! max = [12.0, 12.0, 4.0]
+//! # or `size = [Lx, Ly, Lz]` for the shoebox [0, Lx] × [0, Ly] × [0, Lz]
+//!
+//! [[obstacle]]                 # optional, informative: name, min, max, loss_db
 //! ```
+//! This is a superset of the `site.toml` that `host-sim simulate` writes.
 //! The array frame is x right, y forward, z up along the array normal; the rotation from the
 //! array frame to the world is R = Rz(yaw)·Ry(pitch)·Rx(roll).
 
@@ -34,6 +44,10 @@ pub struct ArrayPose {
     pub rotation: [[f64; 3]; 3],
     /// Geometry name, if given.
     pub geometry: Option<String>,
+    /// True time of the array's sample 0, s.
+    pub clock_offset_s: f64,
+    /// Rate error of the array's clock, ppm (its second lasts 1 + drift·1e-6 true seconds).
+    pub clock_drift_ppm: f64,
 }
 
 impl ArrayPose {
@@ -47,7 +61,12 @@ impl ArrayPose {
             [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
             [-sp, cp * sr, cp * cr],
         ];
-        Self { id, position, rotation, geometry: None }
+        Self { id, position, rotation, geometry: None, clock_offset_s: 0.0, clock_drift_ppm: 0.0 }
+    }
+
+    /// True time, s, of sample `index` of this array's clock at nominal rate `sample_rate_hz`.
+    pub fn sample_time(&self, index: f64, sample_rate_hz: f64) -> f64 {
+        self.clock_offset_s + index / sample_rate_hz * (1.0 + self.clock_drift_ppm * 1e-6)
     }
 
     /// A direction in the array frame turned into the world frame.
@@ -87,14 +106,22 @@ pub struct Site {
     pub arrays: Vec<ArrayPose>,
     /// The flight volume, if known.
     pub room: Option<Room>,
+    /// Nominal sample rate of the arrays, Hz, if given.
+    pub sample_rate_hz: Option<u32>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SiteFile {
+    sample_rate_hz: Option<u32>,
+    #[allow(dead_code)]
+    speed_of_sound_mps: Option<f64>,
     #[serde(default)]
     array: Vec<toml::Spanned<ArrayEntry>>,
     room: Option<toml::Spanned<RoomEntry>>,
+    #[serde(default)]
+    #[allow(dead_code)]
+    obstacle: Vec<toml::Value>,
 }
 
 #[derive(Deserialize)]
@@ -109,13 +136,21 @@ struct ArrayEntry {
     #[serde(default)]
     roll_deg: f64,
     geometry: Option<String>,
+    #[serde(default)]
+    #[allow(dead_code)]
+    positions: Vec<[f64; 2]>,
+    #[serde(default)]
+    clock_offset_s: f64,
+    #[serde(default)]
+    clock_drift_ppm: f64,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RoomEntry {
-    min: [f64; 3],
-    max: [f64; 3],
+    min: Option<[f64; 3]>,
+    max: Option<[f64; 3]>,
+    size: Option<[f64; 3]>,
 }
 
 impl Site {
@@ -146,6 +181,7 @@ impl Site {
                 .position
                 .iter()
                 .chain(&[a.yaw_deg, a.pitch_deg, a.roll_deg])
+                .chain(&[a.clock_offset_s, a.clock_drift_ppm])
                 .all(|v| v.is_finite());
             if !finite {
                 return Err(err(
@@ -164,21 +200,41 @@ impl Site {
                 a.roll_deg.to_radians(),
             );
             pose.geometry = a.geometry.clone();
+            pose.clock_offset_s = a.clock_offset_s;
+            pose.clock_drift_ppm = a.clock_drift_ppm;
             arrays.push(pose);
         }
         let room = match &file.room {
             Some(r) => {
                 let e = r.get_ref();
-                if (0..3)
-                    .any(|i| !(e.min[i].is_finite() && e.max[i].is_finite() && e.min[i] < e.max[i]))
-                {
-                    return Err(err(r.span(), "room: every min must be below its max".into()));
+                let (min, max) = match (e.min, e.max, e.size) {
+                    (Some(min), Some(max), None) => (min, max),
+                    (None, None, Some(size)) => ([0.0; 3], size),
+                    _ => {
+                        return Err(err(
+                            r.span(),
+                            "room: give either `min` and `max`, or `size`".into(),
+                        ))
+                    }
+                };
+                if (0..3).any(|i| !(min[i].is_finite() && max[i].is_finite() && min[i] < max[i])) {
+                    return Err(err(
+                        r.span(),
+                        "room: every min must be below its max (sizes positive)".into(),
+                    ));
                 }
-                Some(Room { min: e.min, max: e.max })
+                Some(Room { min, max })
             }
             None => None,
         };
-        Ok(Self { arrays, room })
+        if file.sample_rate_hz == Some(0) {
+            return Err(ConfigError {
+                path: path.to_path_buf(),
+                line: None,
+                message: "sample_rate_hz must be positive".into(),
+            });
+        }
+        Ok(Self { arrays, room, sample_rate_hz: file.sample_rate_hz })
     }
 
     /// The array with this id.
@@ -201,6 +257,37 @@ mod tests {
         let back = a.to_array(w);
         assert!((back[0] - 1.0).abs() < 1e-12);
         assert_eq!(site.room.unwrap().max[2], 3.0);
+    }
+
+    #[test]
+    fn reads_the_simulators_site_file() {
+        let text = r#"# AIM site file written by host-sim.
+sample_rate_hz = 48000
+speed_of_sound_mps = 343.2
+
+[[array]]
+id = 1
+geometry = "respeaker-6mic"
+positions = [[0.0463, 0.0], [0.02315, 0.0401]]
+position = [10.0, 2.0, 0.05]
+yaw_deg = 0.0
+clock_offset_s = 0.5
+clock_drift_ppm = 0.0
+
+[room]
+size = [20.0, 20.0, 5.0]
+
+[[obstacle]]
+name = "shelf"
+min = [6.5, 7.6, 0.0]
+max = [9.5, 8.4, 2.0]
+loss_db = 15.0
+"#;
+        let site = Site::parse(text, Path::new("site.toml")).unwrap();
+        assert_eq!(site.sample_rate_hz, Some(48_000));
+        assert_eq!(site.room.unwrap().max, [20.0, 20.0, 5.0]);
+        let a = site.array(1).unwrap();
+        assert!((a.sample_time(48_000.0, 48_000.0) - 1.5).abs() < 1e-12);
     }
 
     #[test]

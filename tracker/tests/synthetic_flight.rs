@@ -158,7 +158,7 @@ fn run(
     seed: u64,
 ) -> Run {
     let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.3, 0.0, 0.0);
-    let site = Site { arrays: vec![array.clone()], room: None };
+    let site = Site { arrays: vec![array.clone()], room: None, sample_rate_hz: None };
     let inputs = observe(states, &array, truth_profile, 1.0, seed);
     let mut tracker = Tracker::new(site, profile_given, kind, TrackerConfig::default()).unwrap();
     let mut fixes = Vec::new();
