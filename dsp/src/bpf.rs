@@ -201,7 +201,8 @@ pub fn find_peaks(buf: &mut [f32; ANALYSIS_LEN], config: &Config) -> Peaks {
     // Magnitudes in place: bin k reads buf[2k], buf[2k+1] and writes buf[k] ≤ 2k.
     for k in 0..ANALYSIS_LEN / 2 {
         let (re, im) = (buf[2 * k], buf[2 * k + 1]);
-        buf[k] = libm::sqrtf(re * re + im * im);
+        let p = re * re + im * im;
+        buf[k] = if p > 0.0 { p * crate::gcc_phat::rsqrt(p) } else { 0.0 };
     }
     let mags = &buf[..ANALYSIS_LEN / 2];
     let bin_hz = DECIMATED_RATE_HZ as f32 / ANALYSIS_LEN as f32;

@@ -9,8 +9,6 @@
 
 use crate::MAX_MICS;
 
-/// Extra fractional bits of the DC estimate.
-const DC_FRAC_BITS: u32 = 16;
 /// Largest block shift: a block quieter than 2^-16 of full scale is not amplified further.
 pub const MAX_BLOCK_SHIFT: u32 = 16;
 /// Magnitude at or above which a word counts as clipped (24-bit full scale, left-justified).
@@ -26,18 +24,28 @@ pub fn dc_shift(sample_rate_hz: u32) -> u32 {
 }
 
 /// Per-microphone DC removal state and the clip counter.
+///
+/// The DC estimate is kept in Q31 and updated as `dc += (x/2 − dc/2) >> (k − 1)`: all in 32 bits
+/// (one cycle per operation on the Cortex-M), never overflowing; its truncation leaves at most
+/// 2^k LSB of Q31 (−126 dBFS at k = 10) of DC behind.
 #[derive(Debug, Clone)]
 pub struct FrontEnd {
-    dc: [i64; MAX_MICS],
+    dc: [i32; MAX_MICS],
     shift: u32,
     /// Words at full scale since the counter was last taken.
     pub clipped: u32,
 }
 
 impl FrontEnd {
-    /// A front end with zero DC estimates; `shift` from [`dc_shift`].
+    /// A front end with zero DC estimates; `shift` from [`dc_shift`] (1..=30).
     pub const fn new(shift: u32) -> Self {
         Self { dc: [0; MAX_MICS], shift, clipped: 0 }
+    }
+
+    #[inline(always)]
+    fn step(dc: &mut i32, k1: u32, x: i32) -> i32 {
+        *dc += ((x >> 1) - (*dc >> 1)) >> k1;
+        x.saturating_sub(*dc)
     }
 
     /// One TDM word of microphone `mic` → DC-removed Q31 sample (saturated).
@@ -49,16 +57,28 @@ impl FrontEnd {
     /// for _ in 0..20_000 { y = fe.remove_dc(0, 0x1000_0000); }
     /// assert!(y.abs() < 0x0010_0000);
     /// ```
-    #[inline]
     pub fn remove_dc(&mut self, mic: usize, word: i32) -> i32 {
-        if word >= CLIP_LEVEL || word <= -CLIP_LEVEL {
-            self.clipped = self.clipped.saturating_add(1);
+        let mut one = [word];
+        self.remove_dc_block(mic, &mut one);
+        one[0]
+    }
+
+    /// Removes DC in place from consecutive Q31 samples of microphone `mic`, counts clipped
+    /// words, and returns the largest absolute output.
+    pub fn remove_dc_block(&mut self, mic: usize, samples: &mut [i32]) -> u32 {
+        let k1 = self.shift.clamp(1, 30) - 1;
+        let mut dc = self.dc[mic];
+        let (mut peak, mut clipped) = (0u32, 0u32);
+        for s in samples {
+            let x = *s;
+            clipped += u32::from(x >= CLIP_LEVEL || x <= -CLIP_LEVEL);
+            let y = Self::step(&mut dc, k1, x);
+            peak = peak.max(y.unsigned_abs());
+            *s = y;
         }
-        let x = (word as i64) << DC_FRAC_BITS;
-        let dc = &mut self.dc[mic];
-        *dc += (x - *dc) >> self.shift;
-        let y = (word as i64) - (*dc >> DC_FRAC_BITS);
-        y.clamp(i32::MIN as i64, i32::MAX as i64) as i32
+        self.dc[mic] = dc;
+        self.clipped = self.clipped.saturating_add(clipped);
+        peak
     }
 }
 
@@ -77,22 +97,14 @@ pub fn block_shift(max_abs: u32) -> u32 {
     (max_abs.leading_zeros().saturating_sub(1)).min(MAX_BLOCK_SHIFT)
 }
 
-/// Q31 sample → Q15 after the block shift, rounded to nearest and saturated.
-#[inline]
+/// Q31 sample → Q15 after the block shift, rounded to nearest (ties up) and saturated.
+///
+/// `shift` must not exceed `block_shift(|q31|)` (true for every sample of the block the shift
+/// was computed from), so the shifted value fits in 32 bits.
+#[inline(always)]
 pub fn to_q15(q31: i32, shift: u32) -> i16 {
-    let v = ((q31 as i64) << shift) + (1 << 15);
-    (v >> 16).clamp(i16::MIN as i64, i16::MAX as i64) as i16
-}
-
-/// Largest absolute value over the first `len` samples of each of the given channels.
-pub fn max_abs(channels: &[[i32; crate::MAX_BLOCK_LEN]], len: usize) -> u32 {
-    let mut m = 0u32;
-    for ch in channels {
-        for &s in &ch[..len] {
-            m = m.max(s.unsigned_abs());
-        }
-    }
-    m
+    let v = q31 << shift;
+    (((v >> 15) + 1) >> 1).min(i16::MAX as i32) as i16
 }
 
 #[cfg(test)]
@@ -108,6 +120,8 @@ mod tests {
         let q = to_q15(x, s);
         assert_eq!(q, 1 << 14); // 0.5 in Q15, exponent −7 → 2^-8
         assert_eq!(to_q15(i32::MIN, 0), i16::MIN);
+        assert_eq!(to_q15(-(1 << 15), 0), 0); // −0.5 LSB: ties round up
+        assert_eq!(to_q15(3 << 15, 0), 2); // 1.5 LSB rounds up
         assert_eq!(to_q15(i32::MAX, 0), i16::MAX);
     }
 

@@ -16,8 +16,29 @@
 use core::f32::consts::PI;
 use microfft::Complex32;
 
+/// Lag step of the coarse search, samples.
+pub const COARSE_STEP: usize = 2;
+/// Most Newton steps of the sub-sample refinement.
+const NEWTON_STEPS: usize = 3;
+
 /// Magnitude below which a bin carries no phase (PHAT would divide by ~0): it contributes zero.
 pub const PHAT_EPSILON: f32 = 1e-20;
+
+/// 1/√x for x > 0 in four multiplies per Newton step (relative error below 5·10⁻⁶): the
+/// Cortex-M4F's FPU has VSQRT but libm's `sqrtf` is a software routine of ~100 instructions,
+/// and `forbid(unsafe_code)` rules out the intrinsic. Plain f32 arithmetic, so the host computes
+/// the same bits.
+///
+/// ```
+/// let r = aim_dsp::gcc_phat::rsqrt(2.0);
+/// assert!((r - 0.70710678).abs() < 5e-6);
+/// ```
+#[inline(always)]
+pub fn rsqrt(x: f32) -> f32 {
+    let y = f32::from_bits(0x5F37_5A86 - (x.to_bits() >> 1));
+    let y = y * (1.5 - 0.5 * x * y * y);
+    y * (1.5 - 0.5 * x * y * y)
+}
 
 /// Writes the PHAT-weighted (unit-magnitude) band bins of `spectrum` into `out` as interleaved
 /// `re, im` pairs: `out[2b], out[2b+1]` = X(first_bin + b) / |X(first_bin + b)|.
@@ -25,7 +46,7 @@ pub fn phat_band(spectrum: &[Complex32], first_bin: usize, out: &mut [f32]) {
     for (o, x) in out.chunks_exact_mut(2).zip(&spectrum[first_bin..]) {
         let p = x.re * x.re + x.im * x.im;
         if p > PHAT_EPSILON * PHAT_EPSILON {
-            let inv = 1.0 / libm::sqrtf(p);
+            let inv = rsqrt(p);
             o[0] = x.re * inv;
             o[1] = x.im * inv;
         } else {
@@ -49,7 +70,8 @@ pub fn accumulate_cross(acc: &mut [Complex32], ui: &[f32], uj: &[f32]) {
 pub fn weight_by_coherence(g: &mut [Complex32], blocks: u32) {
     let inv = 1.0 / blocks.max(1) as f32;
     for x in g {
-        let m = libm::sqrtf(x.re * x.re + x.im * x.im) * inv;
+        let p = x.re * x.re + x.im * x.im;
+        let m = if p > 0.0 { p * rsqrt(p) * inv } else { 0.0 };
         x.re *= m;
         x.im *= m;
     }
@@ -102,28 +124,29 @@ pub fn correlation_derivatives(
     [r, r1, r2]
 }
 
-/// R(τ) at an integer lag.
-fn correlation_at(g: &[Complex32], first_bin: usize, fft_len: usize, lag: i32) -> f32 {
-    let w = 2.0 * PI / fft_len as f32;
+/// R(+lag) and R(−lag) at an integer lag ≥ 0 in one pass: with c, s = cos, sin(2πk·lag/K),
+/// R(±lag) = Σ Re(G)·c ∓ Σ Im(G)·s.
+fn correlation_pm(g: &[Complex32], first_bin: usize, fft_len: usize, lag: usize) -> (f32, f32) {
     let (s0, c0) = phase(first_bin, fft_len, lag as f32);
-    let step = (lag.rem_euclid(fft_len as i32)) as f32 * w;
+    let step = 2.0 * PI * lag as f32 / fft_len as f32;
     let (ss, cs) = (libm::sinf(step), libm::cosf(step));
     let (mut s, mut c) = (s0, c0);
-    let mut r = 0.0f32;
+    let (mut p, mut q) = (0.0f32, 0.0f32);
     for x in g {
-        r += x.re * c - x.im * s;
+        p += x.re * c;
+        q += x.im * s;
         let c2 = c * cs - s * ss;
         s = s * cs + c * ss;
         c = c2;
     }
-    r
+    (p - q, p + q)
 }
 
 /// sin, cos of 2π·k·τ/K, with the integer part of k·τ reduced modulo K first.
 fn phase(k: usize, fft_len: usize, tau: f32) -> (f32, f32) {
     let whole = libm::floorf(tau);
     let frac = tau - whole;
-    let int_phase = ((k as i64 * whole as i64).rem_euclid(fft_len as i64)) as f32;
+    let int_phase = ((k as i32).wrapping_mul(whole as i32).rem_euclid(fft_len as i32)) as f32;
     let a = 2.0 * PI * (int_phase + k as f32 * frac) / fft_len as f32;
     (libm::sinf(a), libm::cosf(a))
 }
@@ -155,12 +178,19 @@ pub fn estimate_delay(
     max_lag: usize,
     blocks: u32,
 ) -> DelayEstimate {
-    let max_lag = max_lag.min(crate::MAX_LAG) as i32;
-    let mut r = [0.0f32; 2 * crate::MAX_LAG + 1];
-    let n = (2 * max_lag + 1) as usize;
+    // Coarse grid every COARSE_STEP samples over ±max_lag (rounded up to the grid): the
+    // PHAT-band correlation has no detail finer than a quarter period of the top band edge
+    // (6 kHz at 48 kHz: 2 samples), and Newton refines below.
+    let half = max_lag.min(crate::MAX_LAG).div_ceil(COARSE_STEP);
+    let n = 2 * half + 1;
+    let mut r = [0.0f32; 2 * crate::MAX_LAG / COARSE_STEP + 3];
+    for m in 0..=half {
+        let (plus, minus) = correlation_pm(g, first_bin, fft_len, m * COARSE_STEP);
+        r[half + m] = plus;
+        r[half - m] = minus;
+    }
     let mut best = 0usize;
-    for i in 0..n {
-        r[i] = correlation_at(g, first_bin, fft_len, i as i32 - max_lag);
+    for i in 1..n {
         if r[i] > r[best] {
             best = i;
         }
@@ -181,26 +211,28 @@ pub fn estimate_delay(
             second = second.max(r[i]);
         }
     }
+    let step = COARSE_STEP as f32;
+    let max_lag = (half * COARSE_STEP) as i32;
     // Parabola through the three lags around the peak, then Newton on R'(τ) = 0.
-    let mut tau = (best as i32 - max_lag) as f32;
+    let mut tau = (best as f32 - half as f32) * step;
     if best > 0 && best + 1 < n {
         let (a, b, c) = (r[best - 1], r[best], r[best + 1]);
         let den = a - 2.0 * b + c;
         if den < 0.0 {
-            tau += (0.5 * (a - c) / den).clamp(-0.5, 0.5);
+            tau += step * (0.5 * (a - c) / den).clamp(-0.5, 0.5);
         }
     }
     let centre = tau;
     let mut height = peak;
-    for _ in 0..3 {
+    for _ in 0..NEWTON_STEPS {
         let [v, d1, d2] = correlation_derivatives(g, first_bin, fft_len, tau);
         height = v;
         if d2.is_nan() || d2 >= 0.0 {
             break;
         }
-        let step = (-d1 / d2).clamp(-0.5, 0.5);
-        tau = (tau + step).clamp(centre - 1.0, centre + 1.0);
-        if libm::fabsf(step) < 1e-4 {
+        let delta = (-d1 / d2).clamp(-0.5, 0.5);
+        tau = (tau + delta).clamp(centre - step, centre + step);
+        if libm::fabsf(delta) < 1e-4 {
             break;
         }
     }

@@ -172,25 +172,46 @@ impl Pipeline {
         if !self.configured {
             return;
         }
-        for &w in words {
-            if self.slot < self.mics {
-                self.block[self.slot][self.fill] = self.front.remove_dc(self.slot, w);
-            }
-            self.slot += 1;
-            if self.slot == self.config.tdm_slots {
-                self.slot = 0;
-                self.fill += 1;
-                if self.fill == self.config.block_len {
-                    self.fill = 0;
-                    self.process_block(sink);
+        let slots = self.config.tdm_slots;
+        let n = self.config.block_len;
+        let mut words = words;
+        while !words.is_empty() {
+            if self.slot == 0 && words.len() >= slots {
+                // Whole frames: the common case, one tight loop per frame.
+                let frames = (words.len() / slots).min(n - self.fill);
+                let (now, rest) = words.split_at(frames * slots);
+                for (f, frame) in now.chunks_exact(slots).enumerate() {
+                    for (ch, &w) in self.block[..self.mics].iter_mut().zip(frame) {
+                        ch[self.fill + f] = w;
+                    }
                 }
+                self.fill += frames;
+                words = rest;
+            } else {
+                // A frame split across calls: word by word until the next frame starts.
+                if self.slot < self.mics {
+                    self.block[self.slot][self.fill] = words[0];
+                }
+                words = &words[1..];
+                self.slot += 1;
+                if self.slot == slots {
+                    self.slot = 0;
+                    self.fill += 1;
+                }
+            }
+            if self.fill == n {
+                self.fill = 0;
+                self.process_block(sink);
             }
         }
     }
 
     fn process_block(&mut self, sink: &mut impl FnMut(Output)) {
         let n = self.config.block_len;
-        let peak = frontend::max_abs(&self.block[..self.mics], n);
+        let mut peak = 0u32;
+        for (mic, ch) in self.block[..self.mics].iter_mut().enumerate() {
+            peak = peak.max(self.front.remove_dc_block(mic, &mut ch[..n]));
+        }
         let shift = frontend::block_shift(peak);
         self.last_exponent = -(shift as i8);
         self.health_peak = self.health_peak.max(peak);
@@ -216,16 +237,31 @@ impl Pipeline {
         }
     }
 
-    /// Windowed FFT and PHAT band of every microphone, then every pair's cross spectrum.
+    /// Q15 conversion, window, FFT and PHAT band of every microphone, then every pair's cross
+    /// spectrum. Leaves the sum of the microphones' Q15 samples in `block[0]` (the mono signal
+    /// of the spectral path).
     fn spatial_block(&mut self, shift: u32) {
         let n = self.config.block_len;
         let nb = self.band_bins;
         let (fft_buf, units) = self.scratch.split_at_mut(MAX_BLOCK_LEN);
+        let [mono, others @ ..] = &mut self.block;
         for mic in 0..self.mics {
-            for ((x, &s), &w) in
-                fft_buf[..n].iter_mut().zip(&self.block[mic][..n]).zip(&self.window[..n])
-            {
-                *x = frontend::to_q15(s, shift) as f32 * w;
+            let window = &self.window[..n];
+            if mic == 0 {
+                for ((x, s), &w) in fft_buf[..n].iter_mut().zip(&mut mono[..n]).zip(window) {
+                    let q = frontend::to_q15(*s, shift);
+                    *x = f32::from(q) * w;
+                    *s = i32::from(q);
+                }
+            } else {
+                let ch = &others[mic - 1][..n];
+                for (((x, &s), m), &w) in
+                    fft_buf[..n].iter_mut().zip(ch).zip(&mut mono[..n]).zip(window)
+                {
+                    let q = frontend::to_q15(s, shift);
+                    *x = f32::from(q) * w;
+                    *m += i32::from(q);
+                }
             }
             let unit = &mut units[mic * 2 * MAX_BAND_BINS..][..2 * nb];
             if n == 1024 {
@@ -272,17 +308,14 @@ impl Pipeline {
         })
     }
 
-    /// Mono mean of the Q15 block (fraction of full scale) into the decimator; BPF analysis
+    /// Mono mean of the Q15 block (`block[0]` after [`Self::spatial_block`], as a fraction of
+    /// full scale) into the decimator; BPF analysis
     /// when one is due.
     fn spectral_block(&mut self, shift: u32, sink: &mut impl FnMut(Output)) {
         let scale = 1.0 / ((1u64 << (shift + 15)) as f32 * self.mics as f32);
         let mut due = false;
-        for t in 0..self.config.block_len {
-            let sum: i32 = self.block[..self.mics]
-                .iter()
-                .map(|ch| frontend::to_q15(ch[t], shift) as i32)
-                .sum();
-            due |= self.spectral.push(sum as f32 * scale);
+        for &m in &self.block[0][..self.config.block_len] {
+            due |= self.spectral.push(m as f32 * scale);
         }
         if due {
             let peaks = self.spectral.analyze(&self.config, &mut self.scratch);
