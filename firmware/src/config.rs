@@ -58,8 +58,12 @@ pub const SLOT_BITS: u32 = 32;
 pub const CHUNK_FRAMES: usize = 256;
 /// 32-bit words per capture chunk.
 pub const CHUNK_WORDS: usize = CHUNK_FRAMES * TDM_SLOTS;
-/// Chunks the capture task can queue for the DSP task (4 × 5.33 ms = 21.3 ms of slack).
-pub const CAPTURE_QUEUE_CHUNKS: usize = 4;
+/// Chunks the capture task can queue for the DSP task: 8 × 5.33 ms = 42.7 ms, two DSP blocks.
+///
+/// The DSP load is bursty: every `average_blocks`-th block also averages the cross spectra and
+/// estimates a direction, and that one push can take longer than a chunk period. The queue
+/// absorbs it (64 KB of AXI SRAM); `tests/hil` `dsp_time` checks the longest push fits.
+pub const CAPTURE_QUEUE_CHUNKS: usize = 8;
 
 /// Uplink baud rate on USART3 (the ST-LINK virtual COM port).
 pub const UPLINK_BAUD: u32 = 921_600;
