@@ -208,41 +208,37 @@ fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
     Ok(chains)
 }
 
+/// Functions that are a stage, or part of one, wherever they are inlined: the innermost of
+/// these in an inline chain decides.
+const STAGE_FUNCTIONS: [(&str, Probe); 13] = [
+    ("aim_wire::", Probe::Encode),
+    ("aim_dsp::gcc_phat::phat_band", Probe::Phat),
+    ("aim_dsp::gcc_phat::accumulate_cross", Probe::Phat),
+    ("aim_dsp::gcc_phat::weight_by_coherence", Probe::Inverse),
+    ("aim_dsp::gcc_phat::estimate_delay", Probe::Inverse),
+    ("aim_dsp::gcc_phat::correlation", Probe::Inverse),
+    ("aim_dsp::doa::", Probe::Doa),
+    ("aim_dsp::bpf::", Probe::Bpf),
+    // The pipeline's steps: what they do outside the functions above.
+    ("aim_dsp::pipeline::Pipeline::spatial_block", Probe::Fft),
+    ("aim_dsp::pipeline::Pipeline::estimate_direction", Probe::Doa),
+    ("aim_dsp::pipeline::Pipeline::spectral_block", Probe::Bpf),
+    ("aim_dsp::pipeline::", Probe::PipelineOther),
+    ("aim_dsp::frontend::", Probe::PipelineOther),
+];
+
 /// The DSP stage an instruction belongs to, from its inline chain (function names, innermost
-/// first): the innermost function that names a stage decides; `aim_wire` code is the encode
-/// path. `None` for code outside `aim_dsp` and `aim_wire` (and code they call out of line,
-/// such as microfft's butterflies, libm or postcard): it is charged to the stage that calls it.
+/// first): the innermost function listed in [`STAGE_FUNCTIONS`] decides; `aim_wire` code is the
+/// encode path. `None` for everything else, e.g. code called out of line (microfft's
+/// butterflies, libm, postcard, a small aim-dsp helper): it is charged to the stage that runs
+/// it.
 pub fn classify(chain: &[String]) -> Option<Probe> {
-    let in_crate = |name: &str| chain.iter().any(|f| f.starts_with(name));
-    if !in_crate("aim_dsp::") && !in_crate("aim_wire::") {
-        return None;
-    }
-    for function in chain {
-        let f = function.as_str();
-        let stage = if f.starts_with("aim_wire::") {
-            Probe::Encode
-        } else if f.starts_with("aim_dsp::gcc_phat::phat_band")
-            || f.starts_with("aim_dsp::gcc_phat::accumulate_cross")
-        {
-            Probe::Phat
-        } else if f.starts_with("aim_dsp::gcc_phat::") {
-            Probe::Inverse
-        } else if f.starts_with("aim_dsp::doa::")
-            || f.starts_with("aim_dsp::pipeline::Pipeline::estimate_direction")
-        {
-            Probe::Doa
-        } else if f.starts_with("aim_dsp::bpf::")
-            || f.starts_with("aim_dsp::pipeline::Pipeline::spectral_block")
-        {
-            Probe::Bpf
-        } else if f.starts_with("aim_dsp::pipeline::Pipeline::spatial_block") {
-            Probe::Fft
-        } else {
-            continue;
-        };
-        return Some(stage);
-    }
-    in_crate("aim_dsp::").then_some(Probe::PipelineOther)
+    chain.iter().find_map(|function| {
+        STAGE_FUNCTIONS
+            .iter()
+            .find(|(prefix, _)| function.starts_with(prefix))
+            .map(|&(_, probe)| probe)
+    })
 }
 
 /// Pairs the guest's `section` lines with the plugin's sections (same order) and collects the
@@ -493,6 +489,17 @@ mod tests {
         );
         assert_eq!(classify(&chain(&["aim_wire::crc32::crc32"])), Some(Probe::Encode));
         assert_eq!(classify(&chain(&[closure, push])), Some(Probe::PipelineOther));
+        // A helper inlined into a stage belongs to that stage; out of line, to its caller.
+        let rsqrt = "aim_dsp::gcc_phat::rsqrt";
+        let phat = "aim_dsp::gcc_phat::phat_band";
+        assert_eq!(classify(&chain(&[rsqrt, phat, spatial, push])), Some(Probe::Phat));
+        assert_eq!(classify(&chain(&[rsqrt])), None);
+        let estimate = "aim_dsp::pipeline::Pipeline::estimate_direction";
+        assert_eq!(
+            classify(&chain(&["aim_dsp::gcc_phat::weight_by_coherence", estimate, push])),
+            Some(Probe::Inverse)
+        );
+        assert_eq!(classify(&chain(&["core::slice::fill", estimate, push])), Some(Probe::Doa));
     }
 
     #[test]
