@@ -51,6 +51,22 @@ pub fn yaw_acceleration(k_h: f64, blades: u32, i_z: f64, sum_odd_sq: f64, sum_ev
     k_h / (blades as f64).powi(2) * (sum_odd_sq - sum_even_sq) / i_z
 }
 
+/// Horizontal speed from the cruise thrust excess, m/s.
+///
+/// In cruise the rotors downstream of the others lose a fraction `wake_loss_per_mps`·dᵢ·v of
+/// their thrust (dᵢ: how far downstream, per unit speed) and the controller makes it up by
+/// spinning them faster, so Σ BPF² rises by ρ − 1 ≈ (w v / N)·Σ dᵢ while the thrust stays
+/// m g. Inverting: v = (ρ − 1)·N / (w Σ dᵢ). `excess` is ρ − 1; `downstream_sum` is Σ dᵢ.
+pub fn speed_from_wake(
+    excess: f64,
+    rotors: usize,
+    wake_loss_per_mps: f64,
+    downstream_sum: f64,
+) -> Option<f64> {
+    let k = wake_loss_per_mps * downstream_sum / rotors as f64;
+    (k > 0.0 && excess.is_finite()).then(|| (excess / k).max(0.0))
+}
+
 /// Self-calibration of the hover thrust: the running mean and spread of Σ BPF² over hover.
 #[derive(Clone, Debug)]
 pub struct HoverCalibration {
@@ -215,14 +231,14 @@ impl SpeedIntegrator {
         let sigma_a = G * (2.0 * cal.rel_sigma()).sqrt();
         s.horizontal_accel = 0.0;
         match class {
-            MotionClass::Hover | MotionClass::Yaw if !significant => {
+            MotionClass::Hover | MotionClass::Yaw => {
+                // Stable DoA, no climb: the drone is still (a split with an excess would have
+                // been classed horizontal).
                 self.hover_s += dt;
-                if self.hover_s > 0.3 {
-                    s.horizontal = 0.0;
-                    s.vertical = 0.0;
-                    s.horizontal_sigma = 0.05;
-                    s.vertical_sigma = 0.05;
-                }
+                s.horizontal = 0.0;
+                s.vertical = 0.0;
+                s.horizontal_sigma = 0.05;
+                s.vertical_sigma = 0.05;
                 s.accelerating = false;
             }
             MotionClass::Vertical => {
@@ -305,6 +321,19 @@ mod tests {
         // Thrust at hover equals weight.
         let t = thrust_n(cal.k_v(), 2, cal.hover_sum_sq());
         assert!((t - p.mass_kg * G).abs() < 1e-9);
+    }
+
+    #[test]
+    fn wake_speed_inverts_the_wake_model() {
+        // A quad X at 1.5 m/s with 2 % loss per m/s: the two rear rotors (0.707 downstream
+        // each) lose 2.12 % of thrust and spin up to make it back: Σ f² rises by their
+        // 1/(1 − loss) − 1 ≈ 2.17 %, i.e. ρ − 1 = 2.17 % / 2.
+        let p = Profile::dji_mini_2();
+        let loss = 0.02 * std::f64::consts::FRAC_1_SQRT_2 * 1.5;
+        let excess = (2.0 / (1.0 - loss) + 2.0) / 4.0 - 1.0;
+        let v = speed_from_wake(excess, 4, p.wake_loss_per_mps, p.downstream_sum()).unwrap();
+        assert!((v - 1.5).abs() < 0.04, "{v}");
+        assert!(speed_from_wake(0.01, 4, 0.0, 1.4).is_none());
     }
 
     #[test]

@@ -61,12 +61,18 @@ impl MotionClass {
     }
 }
 
-/// The BPF peaks inside the profile's search range that are at least `min_relative_amplitude`
-/// of the strongest one there, as distinct groups: peaks closer than `min_separation_hz`
-/// merge (amplitude-weighted). Returns the groups sorted by frequency.
+/// The distinct rotor-speed groups the peaks tell, each as a BPF (Hz).
+///
+/// A peak may be the BPF, one of its harmonics or a shaft-rate line (a harmonic of the rotor
+/// speed that is not a multiple of the blade count): each peak is divided by its harmonic
+/// number of the shaft rate `bpf_ref_hz / n` and multiplied by n, so all of them estimate a
+/// BPF. Peaks weaker than `min_relative_amplitude` of the strongest, or landing outside the
+/// profile's BPF range, are ignored; estimates closer than `min_separation_hz` merge
+/// (amplitude-weighted). Returns the groups sorted by frequency.
 pub fn bpf_groups(
     peaks: &[BpfPeak],
     profile: &Profile,
+    bpf_ref_hz: f64,
     min_relative_amplitude: f64,
     min_separation_hz: f64,
 ) -> Vec<BpfPeak> {
@@ -74,6 +80,13 @@ pub fn bpf_groups(
         .iter()
         .copied()
         .filter(|p| p.hz.is_finite() && p.amplitude.is_finite() && p.amplitude > 0.0)
+        .filter_map(|p| {
+            let n = f64::from(profile.blades);
+            let shaft = bpf_ref_hz / n;
+            let harmonic = (p.hz / shaft).round();
+            (harmonic >= 1.0 && harmonic <= 4.0 * n)
+                .then(|| BpfPeak { hz: p.hz * n / harmonic, amplitude: p.amplitude })
+        })
         .filter(|p| p.hz >= profile.bpf_min_hz && p.hz <= profile.bpf_max_hz)
         .collect();
     let strongest = inside.iter().fold(0.0f64, |m, p| m.max(p.amplitude));
@@ -147,9 +160,16 @@ mod tests {
             BpfPeak { hz: 656.0, amplitude: 2.0 },
             BpfPeak { hz: 300.0, amplitude: 0.05 },
         ];
-        let g = bpf_groups(&peaks, &p, 0.2, 1.0);
+        // The 656 Hz harmonic folds onto 328; 300 Hz is too weak.
+        let g = bpf_groups(&peaks, &p, 328.0, 0.2, 1.0);
         assert_eq!(g.len(), 2, "{g:?}");
-        assert!((g[0].hz - 328.2).abs() < 1e-9 && (g[1].hz - 336.0).abs() < 1e-9);
+        assert!((g[0].hz - (328.0 + 2.0 * 656.0 / 2.0 + 328.4) / 4.0).abs() < 1e-9, "{g:?}");
+        assert!((g[1].hz - 336.0).abs() < 1e-9);
+        // Shaft-rate lines: 164.1 (×1) and 492.3 (×3) are the same rotor speed as 328.2.
+        let shaft = [BpfPeak { hz: 164.1, amplitude: 1.0 }, BpfPeak { hz: 492.3, amplitude: 1.0 }];
+        let g = bpf_groups(&shaft, &p, 328.0, 0.2, 1.0);
+        assert_eq!(g.len(), 1, "{g:?}");
+        assert!((g[0].hz - 328.2).abs() < 1e-9, "{g:?}");
     }
 
     #[test]

@@ -12,7 +12,7 @@
 //! lambda_v = 0.02               # vertical quadratic drag, N·s²/m²
 //! bpf_min_hz = 200.0            # BPF search range
 //! bpf_max_hz = 500.0
-//! split_hz_per_mps = 0.0        # optional: front/rear BPF split per m/s of cruise speed (0 = unknown)
+//! wake_loss_per_mps = 0.02       # optional: thrust a rotor loses in the others' wake, per m/s (0 = unknown)
 //! ```
 
 use std::path::Path;
@@ -74,8 +74,10 @@ pub struct Profile {
     pub bpf_min_hz: f64,
     /// Highest plausible BPF, Hz.
     pub bpf_max_hz: f64,
-    /// Front/rear BPF split per unit cruise speed, Hz per m/s; 0 when not calibrated.
-    pub split_hz_per_mps: f64,
+    /// Wake loss: fraction of its thrust a rotor downstream of the others loses per m/s of
+    /// horizontal airspeed (times how far downstream it sits); 0 when unknown. In cruise the
+    /// rear rotors spin faster to make up for it: the speed cue of ALGORITHMS.md §5.
+    pub wake_loss_per_mps: f64,
 }
 
 #[derive(Deserialize)]
@@ -92,7 +94,7 @@ struct ProfileFile {
     lambda_v: toml::Spanned<f64>,
     bpf_min_hz: toml::Spanned<f64>,
     bpf_max_hz: toml::Spanned<f64>,
-    split_hz_per_mps: Option<toml::Spanned<f64>>,
+    wake_loss_per_mps: Option<toml::Spanned<f64>>,
 }
 
 impl Profile {
@@ -138,8 +140,8 @@ impl Profile {
             lambda_v: non_negative(&f.lambda_v, "lambda_v")?,
             bpf_min_hz,
             bpf_max_hz,
-            split_hz_per_mps: match &f.split_hz_per_mps {
-                Some(v) => non_negative(v, "split_hz_per_mps")?,
+            wake_loss_per_mps: match &f.wake_loss_per_mps {
+                Some(v) => non_negative(v, "wake_loss_per_mps")?,
                 None => 0.0,
             },
         })
@@ -157,6 +159,18 @@ impl Profile {
             Path::new("profiles/dji-mini-2.toml"),
         )
         .expect("the bundled profile is valid")
+    }
+
+    /// Σ max(0, −cos θᵢ) over the arm directions θᵢ for a flight nose-first between two arms
+    /// (arms at (i + ½)·360°/N): how many rotors' worth sit downstream. 1.414 for a quad X.
+    pub fn downstream_sum(&self) -> f64 {
+        let n = self.rotors();
+        (0..n)
+            .map(|i| {
+                let theta = (i as f64 + 0.5) * std::f64::consts::TAU / n as f64;
+                (-theta.cos()).max(0.0)
+            })
+            .sum()
     }
 
     /// BPF of every rotor at hover with the profile's k_v, Hz: n·sqrt(m g / (N k_v)).

@@ -4,8 +4,10 @@
 //! motion class (Table I, majority vote) → hover self-calibration and acoustic speeds →
 //! the chosen filter → one [`Fix`].
 
+use std::collections::VecDeque;
+
 use crate::doa::{DoaConfig, DoaState, DoaWindow};
-use crate::dynamics::{sum_bpf_squared, HoverCalibration, SpeedIntegrator};
+use crate::dynamics::{speed_from_wake, sum_bpf_squared, HoverCalibration, SpeedIntegrator};
 use crate::filter::{new_filter, Filter, FilterKind, Step};
 use crate::motion::{bpf_groups, MotionClass, MotionClassifier};
 use crate::observation::{Input, Spectrum};
@@ -31,8 +33,12 @@ pub struct TrackerConfig {
     pub stale_s: f64,
     /// Consecutive hover needed before the hover thrust is calibrated, s.
     pub calibration_hover_s: f64,
-    /// A thrust excess beyond this many hover spreads is an acceleration.
+    /// A thrust excess beyond this many hover spreads (of the window mean) is significant.
     pub accel_sigmas: f64,
+    /// Window of BPF frames averaged for the thrust excess, s.
+    pub excess_window_s: f64,
+    /// Two BPF groups heard this recently count as a split, s.
+    pub split_memory_s: f64,
 }
 
 impl Default for TrackerConfig {
@@ -43,10 +49,12 @@ impl Default for TrackerConfig {
             doa: DoaConfig::default(),
             class_window_s: 0.5,
             min_relative_amplitude: 0.25,
-            min_separation_hz: 0.8,
+            min_separation_hz: 2.0,
             stale_s: 0.5,
             calibration_hover_s: 1.0,
             accel_sigmas: 3.0,
+            excess_window_s: 0.8,
+            split_memory_s: 0.5,
         }
     }
 }
@@ -103,7 +111,8 @@ pub struct Tracker {
     array_index: usize,
     profile: Profile,
     window: DoaWindow,
-    last_spectrum: Option<Spectrum>,
+    /// Recent BPF frames: (t, Σ BPF², groups).
+    spectra: VecDeque<(f64, f64, usize)>,
     classifier: MotionClassifier,
     calibration: HoverCalibration,
     speed: SpeedIntegrator,
@@ -162,7 +171,7 @@ impl Tracker {
             site,
             array_index,
             profile,
-            last_spectrum: None,
+            spectra: VecDeque::new(),
             next_output: None,
             last_output: None,
             hover_run_s: 0.0,
@@ -198,7 +207,7 @@ impl Tracker {
         let id = self.array_id();
         match input {
             Input::Bearing(b) if b.array_id == id => self.window.push(b),
-            Input::Spectrum(s) if s.array_id == id => self.last_spectrum = Some(s),
+            Input::Spectrum(s) if s.array_id == id => self.add_spectrum(&s),
             _ => {}
         }
         fixes
@@ -232,6 +241,25 @@ impl Tracker {
         fixes
     }
 
+    fn add_spectrum(&mut self, s: &Spectrum) {
+        let c = &self.config;
+        let reference = (self.calibration.hover_sum_sq() / self.profile.rotors() as f64).sqrt();
+        let groups = bpf_groups(
+            &s.peaks,
+            &self.profile,
+            reference,
+            c.min_relative_amplitude,
+            c.min_separation_hz,
+        );
+        if let Some(sum) = sum_bpf_squared(&groups, self.profile.rotors()) {
+            self.spectra.push_back((s.t, sum, groups.len()));
+        }
+        let horizon = c.excess_window_s.max(c.split_memory_s) + c.stale_s;
+        while self.spectra.front().is_some_and(|f| f.0 < s.t - horizon) {
+            self.spectra.pop_front();
+        }
+    }
+
     fn output(&mut self, t: f64) -> Option<Fix> {
         let c = &self.config;
         let dt = self.last_output.map_or(c.output_period_s, |t0| t - t0);
@@ -240,36 +268,75 @@ impl Tracker {
             Some(tl) if t - tl <= c.stale_s => self.window.state(tl),
             _ => None,
         };
-        let groups = match &self.last_spectrum {
-            Some(s) if t - s.t <= c.stale_s => {
-                bpf_groups(&s.peaks, &self.profile, c.min_relative_amplitude, c.min_separation_hz)
+        // BPF frames of the last `excess_window_s`: mean Σ BPF² and whether a split was heard.
+        let recent: Vec<&(f64, f64, usize)> = self
+            .spectra
+            .iter()
+            .filter(|(ts, _, _)| {
+                *ts > t - c.excess_window_s
+                    && *ts <= t
+                    && t - ts <= c.stale_s.max(c.excess_window_s)
+            })
+            .collect();
+        let mean_sum_sq = (!recent.is_empty())
+            .then(|| recent.iter().map(|r| r.1).sum::<f64>() / recent.len() as f64);
+        let split_heard = self
+            .spectra
+            .iter()
+            .rev()
+            .take_while(|(ts, _, _)| *ts > t - c.split_memory_s)
+            .any(|(_, _, g)| *g >= 2);
+        let (excess, excess_significant) = match mean_sum_sq {
+            Some(m) => {
+                let (e, _) = self.calibration.excess(m, 0.0);
+                let sigma = self.calibration.rel_sigma() / (recent.len() as f64).sqrt();
+                (e, self.calibration.is_calibrated() && e.abs() > c.accel_sigmas * sigma)
             }
-            _ => Vec::new(),
+            None => (0.0, false),
         };
-        let sum_sq = sum_bpf_squared(&groups, self.profile.rotors());
-        let multiple = groups.len() >= 2;
-        // A significant thrust excess is an acceleration (a yaw keeps the total thrust): with a
-        // split it tilts the drone (horizontal), without one it climbs or sinks (vertical).
-        // Otherwise Table I with the DoA trend.
-        let accelerating = sum_sq.is_some_and(|s| self.calibration.excess(s, c.accel_sigmas).1);
-        let moving = accelerating || doa.is_some_and(|d| d.moving);
+        // Table I, with the split heard in either form: two BPF groups, or a significant
+        // thrust excess (a tilt, or the rear rotors working in the wake), neither of which a
+        // vertical climb at constant speed or a hover shows.
+        let doa_moving = doa.is_some_and(|d| d.moving);
+        let moving = doa_moving || excess_significant;
+        // A climb's thrust excess has no split and moves the DoA in zenith only.
+        let zenith_only = doa.is_some_and(|d| {
+            d.moving && (d.zenith_rad.sin() * d.azimuth_rate).abs() < 0.3 * d.zenith_rate.abs()
+        });
+        let multiple = split_heard || (excess_significant && excess > 0.0 && !zenith_only);
         let raw = MotionClass::from_cues(multiple, moving);
         let motion = self.classifier.update(t, raw);
-        if motion == MotionClass::Hover {
+        let groups = self.spectra.back().map_or(0, |s| s.2);
+        if motion == MotionClass::Hover && !excess_significant {
             self.hover_run_s += dt;
             if self.hover_run_s >= c.calibration_hover_s {
-                if let Some(s) = sum_sq {
-                    self.calibration.add_hover(s, dt);
+                if let Some(m) = mean_sum_sq {
+                    self.calibration.add_hover(m, dt);
                 }
             }
         } else {
             self.hover_run_s = 0.0;
         }
-        let speed = self.speed.update(dt, motion, sum_sq, &self.calibration);
+        let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
+        if motion == MotionClass::Horizontal {
+            let wake = speed_from_wake(
+                excess,
+                self.profile.rotors(),
+                self.profile.wake_loss_per_mps,
+                self.profile.downstream_sum(),
+            );
+            if let (Some(v), true) = (wake, self.calibration.is_calibrated()) {
+                let k = self.profile.wake_loss_per_mps * self.profile.downstream_sum()
+                    / self.profile.rotors() as f64;
+                let sigma = self.calibration.rel_sigma() / (recent.len().max(1) as f64).sqrt() / k;
+                speed.horizontal = v;
+                speed.horizontal_sigma = sigma.max(0.1 * v).max(0.1);
+            }
+        }
         let los = doa.is_some_and(|d| d.los);
         self.diagnostics.push(Diagnostics {
             doa,
-            bpf_groups: groups.len(),
+            bpf_groups: groups,
             k_v: self.calibration.k_v(),
             speed_h: speed.horizontal,
         });
