@@ -4,7 +4,8 @@
 //! The `.axisram` output section of the root `memory.x` is `NOLOAD`: the start-up code neither
 //! loads nor zeroes it, so a buffer there is zero-filled at run time, once, by
 //! [`axisram_buffer!`](crate::axisram_buffer), before the single `&'static mut` to it is made.
-//! This is the firmware's only `unsafe` block.
+//! These, and the zero-initialised `Pipeline` static (see [`assume_zeroed`]), are the
+//! firmware's `unsafe` blocks, with the `u32` → `i32` view of a captured chunk.
 //!
 //! The data cache stays off (`main` enables the instruction cache only), so DMA and CPU see the
 //! same memory without cache maintenance.
@@ -22,6 +23,25 @@ unsafe impl ZeroIsValid for u32 {}
 unsafe impl ZeroIsValid for i32 {}
 // SAFETY: an array of zero-valid elements is zero-valid.
 unsafe impl<T: ZeroIsValid, const N: usize> ZeroIsValid for [T; N] {}
+
+// SAFETY: audited against aim-dsp at commit d468704: every field of `Pipeline`, recursively
+// (`Config`, `Geometry`, `Pair`, `DelayEstimate`, `FrontEnd`, `SpectralPath`, `Decimator`,
+// microfft's `Complex32`), is an integer, a float, a `bool` or an array of those; no enum,
+// reference, `NonZero` or `Option`. Zero bytes are an inert, unconfigured pipeline that
+// `Pipeline::configure` then sets up. Re-audit when `Pipeline` gains a field.
+unsafe impl ZeroIsValid for aim_dsp::Pipeline {}
+
+/// The `T` in a static initialised with `MaybeUninit::zeroed()` (such a static sits in `.bss`,
+/// which the start-up code zeroes: neither stack nor flash holds a copy).
+///
+/// # Safety
+/// Every byte of `*slot` must be zero (nothing has written to it since start-up).
+pub unsafe fn assume_zeroed<T: ZeroIsValid>(
+    slot: &'static mut core::mem::MaybeUninit<T>,
+) -> &'static mut T {
+    // SAFETY: the bytes are zero (caller) and all-zero is a valid `T` (ZeroIsValid).
+    unsafe { slot.assume_init_mut() }
+}
 
 /// Zero-fills `slot` and returns it as an initialised `&'static mut T`.
 ///
