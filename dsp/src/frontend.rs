@@ -66,19 +66,48 @@ impl FrontEnd {
     /// Removes DC in place from consecutive Q31 samples of microphone `mic`, counts clipped
     /// words, and returns the largest absolute output.
     pub fn remove_dc_block(&mut self, mic: usize, samples: &mut [i32]) -> u32 {
+        let mut peak = 0u32;
+        for s in samples {
+            *s = self.remove_dc_one(mic, *s, &mut peak);
+        }
+        peak
+    }
+
+    /// De-interleaves microphone `mic` from whole TDM frames (`frames`, `slots` words each) into
+    /// `out`, removing DC on the way; counts clipped words and raises `peak` to the largest
+    /// absolute output.
+    pub fn remove_dc_frames(
+        &mut self,
+        mic: usize,
+        frames: &[i32],
+        slots: usize,
+        out: &mut [i32],
+        peak: &mut u32,
+    ) {
         let k1 = self.shift.clamp(1, 30) - 1;
         let mut dc = self.dc[mic];
-        let (mut peak, mut clipped) = (0u32, 0u32);
-        for s in samples {
-            let x = *s;
+        let (mut p, mut clipped) = (*peak, 0u32);
+        for (o, &x) in out.iter_mut().zip(frames.iter().skip(mic).step_by(slots)) {
             clipped += u32::from(x >= CLIP_LEVEL || x <= -CLIP_LEVEL);
             let y = Self::step(&mut dc, k1, x);
-            peak = peak.max(y.unsigned_abs());
-            *s = y;
+            p = p.max(y.unsigned_abs());
+            *o = y;
         }
         self.dc[mic] = dc;
         self.clipped = self.clipped.saturating_add(clipped);
-        peak
+        *peak = p;
+    }
+
+    /// One word of microphone `mic` → DC-removed sample; counts clipping, raises `peak`.
+    #[inline]
+    pub fn remove_dc_one(&mut self, mic: usize, x: i32, peak: &mut u32) -> i32 {
+        let k1 = self.shift.clamp(1, 30) - 1;
+        if x >= CLIP_LEVEL || x <= -CLIP_LEVEL {
+            self.clipped = self.clipped.saturating_add(1);
+        }
+        let y = Self::step(&mut self.dc[mic], k1, x);
+        *peak = (*peak).max(y.unsigned_abs());
+        y
     }
 }
 

@@ -16,6 +16,51 @@
 use core::f32::consts::PI;
 use microfft::Complex32;
 
+/// Exact sines and cosines of 2π·m/1024 for integer m (a quarter-wave table): the phasors of
+/// the integer-lag correlation sums without a `sinf`/`cosf` call each.
+#[derive(Debug, Clone)]
+pub struct Twiddles {
+    quarter: [f32; TWIDDLE_QUARTER + 1],
+}
+
+const TWIDDLE_GRID: usize = 1024;
+const TWIDDLE_QUARTER: usize = TWIDDLE_GRID / 4;
+
+impl Twiddles {
+    /// The table (257 `libm::cosf` calls).
+    pub fn new() -> Self {
+        let mut t = Self::empty();
+        for (i, c) in t.quarter.iter_mut().enumerate() {
+            *c = libm::cosf(2.0 * PI * i as f32 / TWIDDLE_GRID as f32);
+        }
+        t
+    }
+
+    /// An all-zero table, for `const` initialisation; fill with [`Twiddles::new`].
+    pub const fn empty() -> Self {
+        Self { quarter: [0.0; TWIDDLE_QUARTER + 1] }
+    }
+
+    /// (sin, cos) of 2π·m/k for integer m, where k divides 1024.
+    pub fn sin_cos(&self, m: usize, k: usize) -> (f32, f32) {
+        let i = (m % k) * (TWIDDLE_GRID / k);
+        let (q, r) = (i / TWIDDLE_QUARTER, i % TWIDDLE_QUARTER);
+        let (a, b) = (self.quarter[r], self.quarter[TWIDDLE_QUARTER - r]); // cos r, sin r
+        match q {
+            0 => (b, a),
+            1 => (a, -b),
+            2 => (-b, -a),
+            _ => (-a, b),
+        }
+    }
+}
+
+impl Default for Twiddles {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// Lag step of the coarse search, samples.
 pub const COARSE_STEP: usize = 2;
 /// Most Newton steps of the sub-sample refinement.
@@ -126,10 +171,15 @@ pub fn correlation_derivatives(
 
 /// R(+lag) and R(−lag) at an integer lag ≥ 0 in one pass: with c, s = cos, sin(2πk·lag/K),
 /// R(±lag) = Σ Re(G)·c ∓ Σ Im(G)·s.
-fn correlation_pm(g: &[Complex32], first_bin: usize, fft_len: usize, lag: usize) -> (f32, f32) {
-    let (s0, c0) = phase(first_bin, fft_len, lag as f32);
-    let step = 2.0 * PI * lag as f32 / fft_len as f32;
-    let (ss, cs) = (libm::sinf(step), libm::cosf(step));
+fn correlation_pm(
+    g: &[Complex32],
+    first_bin: usize,
+    fft_len: usize,
+    lag: usize,
+    tw: &Twiddles,
+) -> (f32, f32) {
+    let (s0, c0) = tw.sin_cos(first_bin * lag, fft_len);
+    let (ss, cs) = tw.sin_cos(lag, fft_len);
     let (mut s, mut c) = (s0, c0);
     let (mut p, mut q) = (0.0f32, 0.0f32);
     for x in g {
@@ -155,11 +205,11 @@ fn phase(k: usize, fft_len: usize, tau: f32) -> (f32, f32) {
 ///
 /// `g`: band bins starting at `first_bin` of a `fft_len`-point transform, summed over
 /// `blocks` blocks of unit-magnitude cross spectra. `max_lag`: search |τ| ≤ `max_lag` samples
-/// (at most [`crate::MAX_LAG`]).
+/// (at most [`crate::MAX_LAG`]). `tw`: the phasor table ([`Twiddles::new`]).
 ///
 /// ```
 /// use microfft::Complex32;
-/// use aim_dsp::gcc_phat::estimate_delay;
+/// use aim_dsp::gcc_phat::{estimate_delay, Twiddles};
 /// // A pure delay of 2.3 samples: G(k) = e^{-j2πk·2.3/K} over bins 5..130 of K = 1024.
 /// let g: Vec<Complex32> = (5..130)
 ///     .map(|k| {
@@ -167,7 +217,7 @@ fn phase(k: usize, fft_len: usize, tau: f32) -> (f32, f32) {
 ///         Complex32::new(a.cos(), a.sin())
 ///     })
 ///     .collect();
-/// let d = estimate_delay(&g, 5, 1024, 8, 1);
+/// let d = estimate_delay(&g, 5, 1024, 8, 1, &Twiddles::new());
 /// assert!((d.delay_samples - 2.3).abs() < 1e-3);
 /// assert!(d.coherence > 0.99);
 /// ```
@@ -177,6 +227,7 @@ pub fn estimate_delay(
     fft_len: usize,
     max_lag: usize,
     blocks: u32,
+    tw: &Twiddles,
 ) -> DelayEstimate {
     // Coarse grid every COARSE_STEP samples over ±max_lag (rounded up to the grid): the
     // PHAT-band correlation has no detail finer than a quarter period of the top band edge
@@ -185,7 +236,7 @@ pub fn estimate_delay(
     let n = 2 * half + 1;
     let mut r = [0.0f32; 2 * crate::MAX_LAG / COARSE_STEP + 3];
     for m in 0..=half {
-        let (plus, minus) = correlation_pm(g, first_bin, fft_len, m * COARSE_STEP);
+        let (plus, minus) = correlation_pm(g, first_bin, fft_len, m * COARSE_STEP, tw);
         r[half + m] = plus;
         r[half - m] = minus;
     }
@@ -280,6 +331,21 @@ mod tests {
     }
 
     #[test]
+    fn twiddles_are_sines_and_cosines_of_the_grid() {
+        let tw = Twiddles::new();
+        for k in [512usize, 1024] {
+            for m in [0usize, 1, 7, 127, 128, 255, 256, 300, 511, 512, 777, 1023, 5000] {
+                let (s, c) = tw.sin_cos(m, k);
+                let a = 2.0 * PI64 * m as f64 / k as f64;
+                assert!(
+                    (s as f64 - a.sin()).abs() < 1e-6 && (c as f64 - a.cos()).abs() < 1e-6,
+                    "{m}/{k}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn correlation_and_derivatives_match_direct_evaluation() {
         let g: Vec<Complex32> = (0..120)
             .map(|b| Complex32::new(libm::cosf(0.37 * b as f32), libm::sinf(1.3 * b as f32) * 0.5))
@@ -315,7 +381,7 @@ mod tests {
     fn pure_delays_are_recovered_across_the_lag_range() {
         for i in 0..=60 {
             let d = -14.5 + 29.0 * i as f32 / 60.0;
-            let e = estimate_delay(&pure_delay(d, 5, 124), 5, 1024, 16, 1);
+            let e = estimate_delay(&pure_delay(d, 5, 124), 5, 1024, 16, 1, &Twiddles::new());
             assert!((e.delay_samples - d).abs() < 2e-3, "delay {d}: got {}", e.delay_samples);
             assert!(e.coherence > 0.999 && e.peak_margin > 0.3, "{e:?}");
         }
@@ -326,8 +392,9 @@ mod tests {
         let direct = pure_delay(2.0, 5, 124);
         let echo = pure_delay(-9.0, 5, 124);
         let mixed: Vec<Complex32> = direct.iter().zip(&echo).map(|(a, b)| a + b * 0.8).collect();
-        let clean = estimate_delay(&direct, 5, 1024, 16, 1);
-        let two = estimate_delay(&mixed, 5, 1024, 16, 1);
+        let tw = Twiddles::new();
+        let clean = estimate_delay(&direct, 5, 1024, 16, 1, &tw);
+        let two = estimate_delay(&mixed, 5, 1024, 16, 1, &tw);
         // The echo's side lobes pull the peak a little (physics, not error): still the direct path.
         assert!((two.delay_samples - 2.0).abs() < 0.3, "{two:?}");
         assert!(
@@ -335,6 +402,9 @@ mod tests {
             "{two:?} vs {clean:?}"
         );
         // No coherent peak at all: nothing.
-        assert_eq!(estimate_delay(&[Complex32::new(0.0, 0.0); 50], 5, 1024, 16, 1).quality(), 0.0);
+        assert_eq!(
+            estimate_delay(&[Complex32::new(0.0, 0.0); 50], 5, 1024, 16, 1, &tw).quality(),
+            0.0
+        );
     }
 }

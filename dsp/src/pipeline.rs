@@ -16,7 +16,7 @@ use microfft::Complex32;
 use crate::bpf::{SpectralPath, ANALYSIS_LEN};
 use crate::doa::{self, Pair};
 use crate::frontend::{self, FrontEnd};
-use crate::gcc_phat::{self, DelayEstimate};
+use crate::gcc_phat::{self, DelayEstimate, Twiddles};
 use crate::{
     Config, ConfigError, Doa, Health, Output, MAX_BAND_BINS, MAX_BLOCK_LEN, MAX_MICS, MAX_PAIRS,
 };
@@ -38,12 +38,15 @@ pub struct Pipeline {
     samples_per_metre: f32,
     pairs: [Pair; MAX_PAIRS],
     delays: [DelayEstimate; MAX_PAIRS],
+    twiddles: Twiddles,
     // front end
     front: FrontEnd,
     block: [[i32; MAX_BLOCK_LEN]; MAX_MICS],
     slot: usize,
     fill: usize,
     block_start: u64,
+    /// Largest absolute DC-removed sample of the block being filled.
+    block_peak: u32,
     blocks: u32,
     last_exponent: i8,
     // spatial path
@@ -75,11 +78,13 @@ impl Pipeline {
             pairs: [Pair { i: 0, j: 0, baseline_m: [0.0; 2], max_lag: 0 }; MAX_PAIRS],
             delays: [DelayEstimate { delay_samples: 0.0, coherence: 0.0, peak_margin: 0.0 };
                 MAX_PAIRS],
+            twiddles: Twiddles::empty(),
             front: FrontEnd::new(10),
             block: [[0; MAX_BLOCK_LEN]; MAX_MICS],
             slot: 0,
             fill: 0,
             block_start: 0,
+            block_peak: 0,
             blocks: 0,
             last_exponent: 0,
             window: [0.0; MAX_BLOCK_LEN],
@@ -126,6 +131,7 @@ impl Pipeline {
             }
         }
         self.pair_count = n;
+        self.twiddles = Twiddles::new();
         crate::window::hann(&mut self.window[..config.block_len]);
         self.front = FrontEnd::new(frontend::dc_shift(config.sample_rate_hz));
         self.spectral.configure(config.sample_rate_hz);
@@ -138,6 +144,7 @@ impl Pipeline {
         self.slot = 0;
         self.fill = 0;
         self.block_start = 0;
+        self.block_peak = 0;
         self.blocks = 0;
         self.averaged = 0;
         self.average_start = 0;
@@ -180,17 +187,17 @@ impl Pipeline {
                 // Whole frames: the common case, one tight loop per frame.
                 let frames = (words.len() / slots).min(n - self.fill);
                 let (now, rest) = words.split_at(frames * slots);
-                for (f, frame) in now.chunks_exact(slots).enumerate() {
-                    for (ch, &w) in self.block[..self.mics].iter_mut().zip(frame) {
-                        ch[self.fill + f] = w;
-                    }
+                for (mic, ch) in self.block[..self.mics].iter_mut().enumerate() {
+                    let out = &mut ch[self.fill..self.fill + frames];
+                    self.front.remove_dc_frames(mic, now, slots, out, &mut self.block_peak);
                 }
                 self.fill += frames;
                 words = rest;
             } else {
                 // A frame split across calls: word by word until the next frame starts.
                 if self.slot < self.mics {
-                    self.block[self.slot][self.fill] = words[0];
+                    self.block[self.slot][self.fill] =
+                        self.front.remove_dc_one(self.slot, words[0], &mut self.block_peak);
                 }
                 words = &words[1..];
                 self.slot += 1;
@@ -208,10 +215,7 @@ impl Pipeline {
 
     fn process_block(&mut self, sink: &mut impl FnMut(Output)) {
         let n = self.config.block_len;
-        let mut peak = 0u32;
-        for (mic, ch) in self.block[..self.mics].iter_mut().enumerate() {
-            peak = peak.max(self.front.remove_dc_block(mic, &mut ch[..n]));
-        }
+        let peak = core::mem::take(&mut self.block_peak);
         let shift = frontend::block_shift(peak);
         self.last_exponent = -(shift as i8);
         self.health_peak = self.health_peak.max(peak);
@@ -291,6 +295,7 @@ impl Pipeline {
                 self.config.block_len,
                 pair.max_lag as usize,
                 self.config.average_blocks,
+                &self.twiddles,
             );
             acc[..nb].fill(Complex32::new(0.0, 0.0));
         }
