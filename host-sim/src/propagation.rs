@@ -230,15 +230,16 @@ pub fn render(
                 for (j, y) in seg.iter_mut().enumerate() {
                     let jf = j as f64;
                     let q = l.0 + dq * jf;
-                    let i = q.floor();
-                    let f = (q - i) as f32;
-                    let i = i as usize;
+                    // q ≥ 1 here, so truncation is the floor (and much cheaper than `floor`,
+                    // a library call on baseline x86-64).
+                    let i = q as usize;
+                    let f = (q - i as f64) as f32;
                     let g = (l.1 + dg * jf) as f32;
                     let b = (l.2 + db * jf) as f32;
                     let c = lagrange4(f);
-                    let s =
-                        c[0] * src[i - 1] + c[1] * src[i] + c[2] * src[i + 1] + c[3] * src[i + 2];
-                    let a = c[0] * d2[i - 1] + c[1] * d2[i] + c[2] * d2[i + 1] + c[3] * d2[i + 2];
+                    let (w, v) = (&src[i - 1..i + 3], &d2[i - 1..i + 3]);
+                    let s = c[0] * w[0] + c[1] * w[1] + c[2] * w[2] + c[3] * w[3];
+                    let a = c[0] * v[0] + c[1] * v[1] + c[2] * v[2] + c[3] * v[3];
                     *y += g * (s + b * a);
                 }
             } else {

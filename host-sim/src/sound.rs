@@ -90,33 +90,64 @@ pub fn propeller(
     let blades = profile.blades as usize;
     let f_hover = profile.hover_rotor_hz;
     let mut phase: f64 = rng.random(); // cycles
-    let mut f_prev = log.rotor_hz(rotor, t0_s);
     let mut out = Vec::with_capacity(len);
-    for k in 0..len {
-        let t = t0_s + k as f64 / sample_rate_hz;
-        let f = log.rotor_hz(rotor, t);
-        phase += (f + f_prev) / (2.0 * sample_rate_hz);
-        phase -= phase.floor();
-        f_prev = f;
-        let x = (f / f_hover).max(0.0);
-        let level = x.powf(profile.level_exponent);
-        let (s1, c1) = (std::f64::consts::TAU * phase).sin_cos();
-        let (mut zr, mut zi) = (1.0, 0.0);
-        let mut tonal = 0.0;
-        let mut blade_cos = 0.0;
-        let top = ((nyquist_guard / f.max(1e-3)) as usize).min(amps.len());
-        for (m, (a, (ps, pc))) in amps.iter().zip(&phases).enumerate().take(top) {
-            // z = e^{i 2π (m+1) φ}, advanced by one complex multiplication per harmonic.
-            let nr = zr * c1 - zi * s1;
-            zi = zr * s1 + zi * c1;
-            zr = nr;
-            tonal += a * (zr * pc - zi * ps);
-            if m + 1 == blades {
-                blade_cos = zr;
+    // Rotor speed and level are linear between flight-log samples; the unit phasor e^{i2πφ} is
+    // advanced by small rotations and re-anchored to the exact phase every 256 samples.
+    let speed_and_level = |t: f64| {
+        let f = log.rotor_hz(rotor, t).max(0.0);
+        (f, (f / f_hover).powf(profile.level_exponent))
+    };
+    let mut k = 0;
+    while k < len {
+        let t_a = t0_s + k as f64 / sample_rate_hz;
+        let (i, _) = log.locate(t_a);
+        let t_next = log.t0_s + (i + 1) as f64 * log.dt_s;
+        let end = if t_next <= t_a || i + 1 >= log.samples.len() {
+            len
+        } else {
+            (((t_next - t0_s) * sample_rate_hz).ceil() as usize).clamp(k + 1, len)
+        };
+        let end = end.min(k + 256);
+        let (f_a, lv_a) = speed_and_level(t_a);
+        let t_b = t0_s + end as f64 / sample_rate_hz;
+        let (f_b, lv_b) = speed_and_level(t_b);
+        let n = (end - k) as f64;
+        let (mut zr1, mut zi1) = {
+            let (s, c) = (std::f64::consts::TAU * phase).sin_cos();
+            (c, s)
+        };
+        let top = ((nyquist_guard / f_a.max(f_b).max(1e-3)) as usize).min(amps.len());
+        for j in 0..end - k {
+            let w = j as f64 / n;
+            let f = f_a + (f_b - f_a) * w;
+            let level = lv_a + (lv_b - lv_a) * w;
+            let (mut zr, mut zi) = (1.0, 0.0);
+            let mut tonal = 0.0;
+            let mut blade_cos = 0.0;
+            for (m, (a, (ps, pc))) in amps.iter().zip(&phases).enumerate().take(top) {
+                // z = e^{i 2π (m+1) φ}, one complex multiplication per harmonic.
+                let nr = zr * zr1 - zi * zi1;
+                zi = zr * zi1 + zi * zr1;
+                zr = nr;
+                tonal += a * (zr * pc - zi * ps);
+                if m + 1 == blades {
+                    blade_cos = zr;
+                }
             }
+            let bb = shaping.process(noise.sample()) * bb_scale * (1.0 + MODULATION * blade_cos);
+            out.push(((tonal + bb) * level) as f32);
+            // Advance the phase by f / fs: exact in φ, a 5th-order rotation for the phasor.
+            let d = f / sample_rate_hz;
+            phase += d;
+            let a = std::f64::consts::TAU * d;
+            let a2 = a * a;
+            let (c, s) = (1.0 - a2 / 2.0 + a2 * a2 / 24.0, a * (1.0 - a2 / 6.0 + a2 * a2 / 120.0));
+            let nr = zr1 * c - zi1 * s;
+            zi1 = zr1 * s + zi1 * c;
+            zr1 = nr;
         }
-        let bb = shaping.process(noise.sample()) * bb_scale * (1.0 + MODULATION * blade_cos);
-        out.push(((tonal + bb) * level) as f32);
+        phase -= phase.floor();
+        k = end;
     }
     SourceSignal { t0_s, sample_rate_hz, samples: out }
 }
