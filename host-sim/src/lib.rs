@@ -142,12 +142,24 @@ impl Trajectory for CentrePath<'_> {
     }
 }
 
+/// Which of the medium's paths a source takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Reach {
+    /// Every path: direct, reflections, diffraction.
+    All,
+    /// The direct path and the diffracted one.
+    Direct,
+    /// The reflections only.
+    Reflections,
+    /// The direct path in free field (the diffuse field's plane waves).
+    FreeDirect,
+}
+
 /// One sound source to render: its signal, where it is, and which paths it takes.
 struct Emitter<'a> {
     signal: PreparedSource<'a>,
     trajectory: Box<dyn Trajectory + 'a>,
-    /// `None`: all the medium's paths; `Some`: direct path only, free of obstacles and room.
-    direct_only: bool,
+    reach: Reach,
 }
 
 /// Simulates `scenario`.
@@ -180,7 +192,7 @@ pub fn simulate_with(
 
     // Source signals on the grid t_first + k / fs.
     let n_src = ((t_last - t_first) * fs).ceil() as usize + 4;
-    let mut signals: Vec<(SourceSignal, Box<dyn Trajectory + '_>, bool)> = Vec::new();
+    let mut signals: Vec<(SourceSignal, Box<dyn Trajectory + '_>, Reach)> = Vec::new();
     let rotors = scenario.drone.rotor_count();
     let rotor_signal = |i: usize| {
         sound::propeller(
@@ -193,25 +205,28 @@ pub fn simulate_with(
             sub_seed(scenario.seed, 100 + i as u64),
         )
     };
-    match scenario.render.rotor_sources {
-        RotorSources::Each => {
-            for i in 0..rotors {
-                signals.push((rotor_signal(i), Box::new(RotorPath { log: &log, rotor: i }), false));
-            }
-        }
-        RotorSources::Centre => {
-            let mut sum = rotor_signal(0);
-            for i in 1..rotors {
-                for (a, b) in sum.samples.iter_mut().zip(rotor_signal(i).samples) {
-                    *a += b;
-                }
-            }
-            signals.push((sum, Box::new(CentrePath(&log)), false));
+    let mode = scenario.render.rotor_sources;
+    let per_rotor: Vec<SourceSignal> = (0..rotors).map(rotor_signal).collect();
+    if mode != RotorSources::Centre {
+        let reach = if mode == RotorSources::Each { Reach::All } else { Reach::Direct };
+        for (i, s) in per_rotor.iter().enumerate() {
+            signals.push((s.clone(), Box::new(RotorPath { log: &log, rotor: i }), reach));
         }
     }
+    if mode != RotorSources::Each {
+        let mut sum = per_rotor[0].clone();
+        for s in &per_rotor[1..] {
+            for (a, b) in sum.samples.iter_mut().zip(&s.samples) {
+                *a += b;
+            }
+        }
+        let reach = if mode == RotorSources::Centre { Reach::All } else { Reach::Reflections };
+        signals.push((sum, Box::new(CentrePath(&log)), reach));
+    }
+    drop(per_rotor);
     for (i, n) in scenario.noise.iter().enumerate() {
         let s = n.signal(t_first, fs, n_src, sub_seed(scenario.seed, 200 + i as u64));
-        signals.push((s, Box::new(Fixed(n.position_m)), false));
+        signals.push((s, Box::new(Fixed(n.position_m)), Reach::All));
     }
     if let Some(d) = &scenario.diffuse_noise {
         // Plane waves centred on the arrays' centroid.
@@ -219,7 +234,8 @@ pub fn simulate_with(
             / scenario.arrays.len() as f64;
         for (i, u) in d.directions().iter().enumerate() {
             let s = d.signal(t_first, fs, n_src, sub_seed(scenario.seed, 300 + i as u64));
-            signals.push((s, Box::new(Fixed(centre + u * noise::DIFFUSE_DISTANCE_M)), true));
+            let position = centre + u * noise::DIFFUSE_DISTANCE_M;
+            signals.push((s, Box::new(Fixed(position)), Reach::FreeDirect));
         }
     }
     let emitters: Vec<Emitter> = signals
@@ -227,7 +243,7 @@ pub fn simulate_with(
         .map(|(s, t, d)| Emitter {
             signal: PreparedSource::new(s),
             trajectory: Box::new(Borrowed(t.as_ref())),
-            direct_only: *d,
+            reach: *d,
         })
         .collect();
 
@@ -244,7 +260,13 @@ pub fn simulate_with(
     };
     let free = Medium { room: None, obstacles: &[], ..medium.clone() };
     let paths = medium.path_kinds();
-    let direct = [PathKind::Image(room::Image::DIRECT)];
+    let is_direct = |k: &PathKind| match k {
+        PathKind::Image(i) => i.order == 0,
+        PathKind::Diffracted => true,
+    };
+    let direct_paths: Vec<PathKind> = paths.iter().copied().filter(is_direct).collect();
+    let reflections: Vec<PathKind> = paths.iter().copied().filter(|k| !is_direct(k)).collect();
+    let free_direct = [PathKind::Image(room::Image::DIRECT)];
 
     // Jobs: one per microphone.
     struct Job {
@@ -286,8 +308,12 @@ pub fn simulate_with(
             let mut rx = job.receiver;
             rx.t0_s += (ci * CHUNK) as f64 * rx.dt_s;
             for e in &emitters {
-                let (m, p): (&Medium, &[PathKind]) =
-                    if e.direct_only { (&free, &direct) } else { (&medium, &paths) };
+                let (m, p): (&Medium, &[PathKind]) = match e.reach {
+                    Reach::All => (&medium, &paths),
+                    Reach::Direct => (&medium, &direct_paths),
+                    Reach::Reflections => (&medium, &reflections),
+                    Reach::FreeDirect => (&free, &free_direct),
+                };
                 propagation::render(m, &e.signal, e.trajectory.as_ref(), p, &rx, block, chunk);
             }
             progress.inc(chunk.len() as u64);
