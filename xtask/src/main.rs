@@ -74,20 +74,10 @@ fn ci(root: &Path) -> Result<()> {
     cargo(root, &["test"])?;
     cargo(root, &["fmt", "--all", "--check"])?;
     cargo(root, &["clippy", "--all-targets", "--", "-D", "warnings"])?;
-    cargo(
-        root,
-        &[
-            "clippy",
-            "-p",
-            "aim-firmware",
-            "--target",
-            "thumbv7em-none-eabihf",
-            "--release",
-            "--",
-            "-D",
-            "warnings",
-        ],
-    )?;
+    // The board's crates: the firmware and its hardware-in-the-loop test binaries.
+    let board = ["-p", "aim-firmware", "-p", "aim-hil-tests", "--target", "thumbv7em-none-eabihf"];
+    cargo(root, &[&["clippy", "--release"], &board[..], &["--", "-D", "warnings"]].concat())?;
+    cargo(root, &[&["build", "--release"], &board[..]].concat())?;
     // Host output equals the Cortex-M4F model's bit for bit (the counts come with `budget`).
     qemu::check_sources(root)?;
     qemu::parity(&qemu::build(root)?)?;
