@@ -103,8 +103,8 @@ fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core:
     let stack = gauge.used();
     core::hint::black_box(bytes);
     writeln!(out, "ram stack-{} {stack}", scenario.name)?;
-    // Working memory of the DSP: the pipeline itself plus the deepest stack of the processing
-    // loop (`push`, the sink, the encode path; the input synthesis is shallower).
+    // Working memory of the DSP: the pipeline itself plus the deepest stack of the measured
+    // loop (input synthesis, `push` with its sink, the encode path): an upper bound for `push`.
     writeln!(out, "ram dsp-{} {}", scenario.name, core::mem::size_of::<Pipeline>() + stack)?;
     writeln!(out, "section {} {} {}", scenario.name, end - start, config.sample_rate_hz)?;
     probe(Probe::Dump);
