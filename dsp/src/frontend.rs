@@ -87,7 +87,11 @@ impl FrontEnd {
         let k1 = self.shift.clamp(1, 30) - 1;
         let mut dc = self.dc[mic];
         let (mut p, mut clipped) = (*peak, 0u32);
-        for (o, &x) in out.iter_mut().zip(frames.iter().skip(mic).step_by(slots)) {
+        if mic >= slots {
+            return;
+        }
+        for (o, frame) in out.iter_mut().zip(frames.chunks_exact(slots)) {
+            let x = frame[mic];
             clipped += u32::from(x >= CLIP_LEVEL || x <= -CLIP_LEVEL);
             let y = Self::step(&mut dc, k1, x);
             p = p.max(y.unsigned_abs());
