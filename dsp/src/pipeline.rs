@@ -318,10 +318,7 @@ impl Pipeline {
     /// when one is due.
     fn spectral_block(&mut self, shift: u32, sink: &mut impl FnMut(Output)) {
         let scale = 1.0 / ((1u64 << (shift + 15)) as f32 * self.mics as f32);
-        let mut due = false;
-        for &m in &self.block[0][..self.config.block_len] {
-            due |= self.spectral.push(m as f32 * scale);
-        }
+        let due = self.spectral.push_block(&self.block[0][..self.config.block_len], scale);
         if due {
             let peaks = self.spectral.analyze(&self.config, &mut self.scratch);
             sink(Output::Peaks(peaks));

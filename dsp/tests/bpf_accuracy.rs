@@ -101,6 +101,34 @@ fn two_groups_eight_hertz_apart_are_counted_as_two() {
 }
 
 #[test]
+fn a_drone_like_group_over_broadband_noise_is_one_group() {
+    // Harmonics plus broadband noise 10 dB below them (100 Hz – 8 kHz, white), then 20 dB SNR.
+    let mut rng = Rng::new(0x0DD);
+    let (mut n, mut one, mut worst) = (0usize, 0usize, 0.0f64);
+    for i in 0..8 {
+        let f0 = 150.0 + 650.0 * (i as f64 + rng.uniform()) / 8.0;
+        let mut x = vec![0.0; N];
+        add_group(&mut x, f0, 0.05, &mut rng);
+        let p = x.iter().map(|v| v * v).sum::<f64>() / N as f64;
+        // White noise at the power 10 dB below, low-passed to 8 kHz by a 6-tap moving average.
+        let mut w = vec![0.0; N + 6];
+        add_noise(&mut w, (p / 10.0 * 6.0).sqrt(), &mut rng);
+        for (t, v) in x.iter_mut().enumerate() {
+            *v += w[t..t + 6].iter().sum::<f64>() / 6.0;
+        }
+        for pk in analyse(&x, 20.0, &mut rng) {
+            n += 1;
+            one += usize::from(pk.count == 1);
+            worst = worst.max((pk.bpf_hz as f64 - f0).abs());
+        }
+    }
+    let share = one as f64 / n as f64;
+    println!("one group over broadband 10 dB below, 20 dB SNR: counted as one in {:.1} % of {n}, worst BPF error {worst:.4} Hz", 100.0 * share);
+    assert!(share >= 0.95, "counted as one in {:.1} %", 100.0 * share);
+    assert!(worst <= 0.1, "worst BPF error {worst} Hz");
+}
+
+#[test]
 fn peaks_are_stamped_with_their_window() {
     let mut rng = Rng::new(7);
     let mut x = vec![0.0; N];
