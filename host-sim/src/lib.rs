@@ -454,7 +454,8 @@ fn make_site(s: &Scenario, c: f64) -> Site {
             .map(|a| SiteArray {
                 id: a.id,
                 geometry: a.geometry.clone(),
-                positions: a.positions.clone(),
+                // Rounded to the nanometre so the file reads well.
+                positions: a.positions.iter().map(|p| p.map(|v| (v * 1e9).round() / 1e9)).collect(),
                 position: a.position_m.into(),
                 yaw_deg: a.yaw_rad.to_degrees(),
                 clock_offset_s: a.clock.offset_s,
