@@ -109,6 +109,22 @@ pub struct Options {
     pub threads: usize,
 }
 
+/// A progress bar on stderr for long runs (`label` leads the line), hidden when stderr is not a
+/// terminal. Its length is set by [`simulate`].
+pub fn progress_bar(label: &str) -> ProgressBar {
+    use std::io::IsTerminal as _;
+    let progress = if std::io::stderr().is_terminal() {
+        ProgressBar::with_draw_target(None, indicatif::ProgressDrawTarget::stderr())
+    } else {
+        ProgressBar::hidden()
+    };
+    let template = format!("{{spinner}} {label} [{{bar:40}}] {{percent:>3}}% eta {{eta}}");
+    if let Ok(style) = indicatif::ProgressStyle::with_template(&template) {
+        progress.set_style(style.progress_chars("=> "));
+    }
+    progress
+}
+
 /// Simulates `scenario` with default options; `progress` (length set here, in output samples)
 /// advances as audio is rendered.
 pub fn simulate(scenario: &Scenario, progress: &ProgressBar) -> anyhow::Result<Simulation> {

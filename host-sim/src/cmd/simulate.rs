@@ -1,9 +1,7 @@
 //! `host-sim simulate`: run a scenario and write the recordings, the truth and the site file.
-use std::io::IsTerminal as _;
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use host_sim::scenario::Scenario;
 
@@ -23,16 +21,7 @@ pub struct Args {
 /// Runs `host-sim simulate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scenario = Scenario::load(&args.scenario)?;
-    let progress = if std::io::stderr().is_terminal() {
-        ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr())
-    } else {
-        ProgressBar::hidden()
-    };
-    progress.set_style(
-        ProgressStyle::with_template("{spinner} simulating [{bar:40}] {percent:>3}% eta {eta}")
-            .context("progress template")?
-            .progress_chars("=> "),
-    );
+    let progress = host_sim::progress_bar("simulating");
     let sim =
         host_sim::simulate_with(&scenario, &host_sim::Options { threads: args.threads }, &progress)
             .with_context(|| format!("simulating {}", args.scenario.display()))?;
