@@ -422,3 +422,33 @@ fn a_moving_source_is_heard_doppler_shifted_and_drifting_clocks_rescale_frequenc
         );
     }
 }
+
+#[test]
+fn simulate_writes_the_contracted_files() {
+    let scenario = hover_scenario("", 0.5);
+    let sim = host_sim::simulate(&scenario, &indicatif::ProgressBar::hidden()).unwrap();
+    let dir = std::env::temp_dir().join(format!("host-sim-out-{}", std::process::id()));
+    sim.write(&dir).unwrap();
+    // WAV: 32-bit float pascals, one channel per microphone, bit-identical to the recording.
+    let mut wav = hound::WavReader::open(dir.join("array-7.wav")).unwrap();
+    let spec = wav.spec();
+    assert_eq!((spec.channels, spec.sample_rate, spec.bits_per_sample), (6, 48_000, 32));
+    assert_eq!(spec.sample_format, hound::SampleFormat::Float);
+    let samples: Vec<f32> = wav.samples::<f32>().map(Result::unwrap).collect();
+    assert_eq!(samples.len(), 6 * 24_000);
+    for (i, ch) in sim.arrays[0].channels.iter().enumerate() {
+        assert!(ch.iter().enumerate().all(|(k, &v)| samples[k * 6 + i] == v), "channel {i}");
+    }
+    let truth = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
+    let header = truth.lines().next().unwrap();
+    assert!(header.starts_with("t,x,y,z,vx,vy,vz,yaw,"), "{header}");
+    assert!(
+        header.contains("rotor1_hz") && header.contains("rotor4_hz") && header.ends_with("los_7")
+    );
+    assert_eq!(truth.lines().count(), 1 + 51);
+    let site = host_sim::site::Site::load(&dir.join("site.toml")).unwrap();
+    assert_eq!(site, sim.site);
+    assert_eq!(site.arrays[0].id, 7);
+    assert_eq!(site.arrays[0].position, [0.0, 0.0, 1.0]);
+    std::fs::remove_dir_all(&dir).ok();
+}
