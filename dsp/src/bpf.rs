@@ -129,8 +129,18 @@ impl Decimator {
         let half = self.len / 2;
         let (head, tail) = window.split_at(self.len - half);
         let mut acc = if self.len % 2 == 1 { head[half] * self.taps[half] } else { 0.0 };
-        for ((a, b), t) in head[..half].iter().zip(tail.iter().rev()).zip(&self.taps[..half]) {
-            acc += (a + b) * t;
+        // Pairs (oldest + newest, …) from both ends inwards; four per step.
+        let (head, taps) = (&head[..half], &self.taps[..half]);
+        for ((h, t), k) in head.chunks_exact(4).zip(tail.rchunks_exact(4)).zip(taps.chunks_exact(4))
+        {
+            acc += (h[0] + t[3]) * k[0];
+            acc += (h[1] + t[2]) * k[1];
+            acc += (h[2] + t[1]) * k[2];
+            acc += (h[3] + t[0]) * k[3];
+        }
+        let done = half - half % 4;
+        for i in done..half {
+            acc += (head[i] + tail[half - 1 - i]) * taps[i];
         }
         acc
     }
