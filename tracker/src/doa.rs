@@ -36,7 +36,7 @@ impl Default for DoaConfig {
     fn default() -> Self {
         Self {
             window_s: 1.0,
-            min_points: 5,
+            min_points: 2,
             los_max_erratic_rad: 3.0f64.to_radians(),
             los_max_fit_residual: f64::INFINITY,
             los_min_quality: 0.0,
@@ -189,7 +189,9 @@ impl DoaWindow {
             && fit_residual <= c.los_max_fit_residual
             && quality >= c.los_min_quality
             && inlier_fraction >= c.los_min_inlier_fraction;
-        let moving = angular_rate > c.moving_min_rate
+        // Too few estimates for a trend: not moving (yet).
+        let moving = keep.len() >= 4
+            && angular_rate > c.moving_min_rate
             && angular_rate > c.moving_min_sigmas * angular_rate_sigma;
         Some(DoaState {
             t,

@@ -20,8 +20,12 @@ pub struct AimConfig {
     pub range_max_m: f64,
     /// Number of initial range hypotheses.
     pub hypotheses: usize,
-    /// Floor of the bearing noise, rad.
+    /// Floor of the azimuth noise (as an angle on the sky), rad.
     pub bearing_sigma_floor: f64,
+    /// Floor of the zenith noise, rad. Larger than the azimuth's: a planar array measures
+    /// zenith through |u_xy| = sin φ, flat near grazing, and reflections bias it there (the
+    /// simulator's ReSpeaker 6-mic pipeline reads 70–73° for a drone at 80°).
+    pub zenith_sigma_floor: f64,
     /// White-acceleration density while moving along the class's axes, m²/s³.
     pub q_moving: f64,
     /// White-acceleration density otherwise, m²/s³.
@@ -38,7 +42,8 @@ impl Default for AimConfig {
             range_min_m: 1.0,
             range_max_m: 25.0,
             hypotheses: 12,
-            bearing_sigma_floor: 0.6f64.to_radians(),
+            bearing_sigma_floor: 1.0f64.to_radians(),
+            zenith_sigma_floor: 5.0f64.to_radians(),
             q_moving: 0.6,
             q_still: 0.02,
             pseudo_sigma: 0.1,
@@ -140,7 +145,8 @@ impl Filter for AimFilter {
         let bearing = match (step.los, step.doa) {
             (true, Some(d)) => {
                 let sigma = d.erratic_rad.max(c.bearing_sigma_floor);
-                Some((d.azimuth_rad, d.zenith_rad, sigma / d.zenith_rad.sin().max(0.05), sigma))
+                let sigma_zen = d.erratic_rad.max(c.zenith_sigma_floor);
+                Some((d.azimuth_rad, d.zenith_rad, sigma / d.zenith_rad.sin().max(0.05), sigma_zen))
             }
             _ => None,
         };
