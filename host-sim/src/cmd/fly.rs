@@ -1,10 +1,207 @@
-//! `host-sim fly`.
+//! `host-sim fly SCENARIO.toml [--filter paper|aim|both] [--out DIR]`: simulate, run every
+//! array's recording through the on-chip pipeline and the wire format (the bytes a board would
+//! send, decoded again), track, and compare with the truth.
+//!
+//! Prints the error summary (mean, median, p90, availability, motion-class accuracy) and writes
+//! `DIR/track.csv` (`t,x,y,z,vx,vy,vz,sigma_x,sigma_y,sigma_z,motion,los,truth_x,truth_y,truth_z,error`),
+//! `DIR/track.png` (track against truth), `DIR/site.toml`, `DIR/frames-<id>.aimraw` (replayable
+//! with `aim replay`) and `DIR/truth.csv`. With `--filter both` the tracks go to
+//! `DIR/paper/` and `DIR/aim/` from one simulation.
+use std::fmt::Write as _;
+use std::io::IsTerminal as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use aim_tracker::filter::FilterKind;
+use aim_tracker::intake::FrameConverter;
+use aim_tracker::observation::Input;
+use aim_tracker::profile::Profile;
+use aim_tracker::tracker::{Fix, Tracker, TrackerConfig};
+use host_sim::eval::{link, metrics, plot};
+use host_sim::scenario::Scenario;
 
 /// Arguments of `host-sim fly`.
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Scenario file (TOML), e.g. `host-sim/scenarios/square10-los.toml`.
+    scenario: PathBuf,
+    /// Filter: `aim`, `paper`, or `both` (one simulation, two tracks).
+    #[arg(long, default_value = "aim")]
+    filter: String,
+    /// Output directory (default: `fly-<scenario name>`).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Drone profile for the tracker (default: `tracker/profiles/<drone preset>.toml` when the
+    /// scenario names a preset the tracker knows, else the bundled DJI Mini 2).
+    #[arg(long)]
+    profile: Option<PathBuf>,
+    /// Output period of the tracker, s.
+    #[arg(long, default_value_t = 0.1)]
+    period: f64,
+    /// Worker threads of the simulation (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+}
+
+/// What one tracker run gave.
+struct TrackRun {
+    kind: FilterKind,
+    fixes: Vec<Fix>,
+    summary: metrics::Summary,
+}
 
 /// Runs `host-sim fly`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`host-sim fly` is not built yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let kinds: Vec<FilterKind> = match args.filter.as_str() {
+        "both" => vec![FilterKind::Paper, FilterKind::Aim],
+        other => vec![other.parse().map_err(anyhow::Error::msg).context("--filter")?],
+    };
+    let scenario = Scenario::load(&args.scenario)?;
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("fly-{}", scenario.name)));
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let profile = match &args.profile {
+        Some(p) => Profile::load(p)?,
+        None => Profile::dji_mini_2(),
+    };
+
+    let progress = progress_bar()?;
+    let sim =
+        host_sim::simulate_with(&scenario, &host_sim::Options { threads: args.threads }, &progress)
+            .with_context(|| format!("simulating {}", args.scenario.display()))?;
+    progress.finish_and_clear();
+
+    // The tracker reads the site file the simulator writes, as `aim replay` would.
+    let site_text = sim.site.to_toml()?;
+    let site_path = out.join("site.toml");
+    std::fs::write(&site_path, &site_text)
+        .with_context(|| format!("writing {}", site_path.display()))?;
+    std::fs::write(out.join("truth.csv"), sim.truth.to_csv()).context("writing truth.csv")?;
+    let site = aim_tracker::site::Site::parse(&site_text, &site_path)?;
+
+    // Every array through the pipeline and the link.
+    let mut converter = FrameConverter::new(site.clone());
+    let mut inputs: Vec<Input> = Vec::new();
+    for rec in &sim.arrays {
+        eprintln!("array {}: on-chip pipeline …", rec.id);
+        let bytes = link::link_bytes(rec, host_sim::DEFAULT_FULL_SCALE_PA)?;
+        let raw_path = out.join(format!("frames-{}.aimraw", rec.id));
+        std::fs::write(&raw_path, &bytes)
+            .with_context(|| format!("writing {}", raw_path.display()))?;
+        let (frames, errors) = link::decode_frames(&bytes);
+        anyhow::ensure!(errors == 0, "array {}: {errors} frames failed to decode", rec.id);
+        inputs.extend(frames.iter().filter_map(|f| converter.convert(f)));
+    }
+    inputs.sort_by(|a, b| a.t().total_cmp(&b.t()));
+    let (Some(first), Some(last)) = (inputs.first().map(Input::t), inputs.last().map(Input::t))
+    else {
+        anyhow::bail!("the pipeline produced no observation");
+    };
+
+    let mut runs = Vec::new();
+    for &kind in &kinds {
+        let config = TrackerConfig { output_period_s: args.period, ..TrackerConfig::default() };
+        let mut tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
+        let array_index = sim
+            .truth
+            .array_ids
+            .iter()
+            .position(|&id| u16::from(id) == tracker.array_id())
+            .unwrap_or(0);
+        let mut fixes = Vec::new();
+        for input in inputs.iter().cloned() {
+            fixes.extend(tracker.push(input));
+        }
+        fixes.extend(tracker.flush());
+        let summary = metrics::evaluate(&fixes, &sim.truth, args.period, first, last, array_index);
+        let dir = if kinds.len() > 1 { out.join(filter_name(kind)) } else { out.clone() };
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        write_track(&dir.join("track.csv"), &fixes, &sim.truth)?;
+        plot::plot_track(&dir.join("track.png"), &fixes, &sim.truth, &sim.site)?;
+        eprintln!(
+            "{}: k_v calibrated to {:.4e} N/Hz² (profile {:.4e})",
+            filter_name(kind),
+            tracker.k_v(),
+            profile.k_v
+        );
+        runs.push(TrackRun { kind, fixes, summary });
+    }
+    for r in &runs {
+        let s = &r.summary;
+        println!(
+            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}",
+            scenario.name,
+            filter_name(r.kind),
+            s.mean_m,
+            s.median_m,
+            s.p90_m,
+            100.0 * s.availability,
+            s.fixes,
+            s.due,
+            100.0 * s.motion_accuracy,
+            s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
+        );
+        let _ = r.fixes.len();
+    }
+    Ok(())
+}
+
+fn filter_name(kind: FilterKind) -> &'static str {
+    match kind {
+        FilterKind::Paper => "paper",
+        FilterKind::Aim => "aim",
+    }
+}
+
+/// Writes the track with the truth beside it.
+fn write_track(path: &Path, fixes: &[Fix], truth: &host_sim::truth::Truth) -> anyhow::Result<()> {
+    let mut s = String::from(
+        "t,x,y,z,vx,vy,vz,sigma_x,sigma_y,sigma_z,motion,los,truth_x,truth_y,truth_z,error\n",
+    );
+    for f in fixes {
+        let (tp, err) = match metrics::truth_at(truth, f.t) {
+            Some((p, _, _)) => {
+                let e = ((f.position[0] - p[0]).powi(2)
+                    + (f.position[1] - p[1]).powi(2)
+                    + (f.position[2] - p[2]).powi(2))
+                .sqrt();
+                (format!("{:.3},{:.3},{:.3}", p[0], p[1], p[2]), format!("{e:.3}"))
+            }
+            None => (",,".to_string(), String::new()),
+        };
+        let _ = writeln!(
+            s,
+            "{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{}",
+            f.t,
+            f.position[0],
+            f.position[1],
+            f.position[2],
+            f.velocity[0],
+            f.velocity[1],
+            f.velocity[2],
+            f.sigma[0],
+            f.sigma[1],
+            f.sigma[2],
+            f.motion.as_str(),
+            f.los,
+            tp,
+            err
+        );
+    }
+    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}
+
+fn progress_bar() -> anyhow::Result<ProgressBar> {
+    let progress = if std::io::stderr().is_terminal() {
+        ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr())
+    } else {
+        ProgressBar::hidden()
+    };
+    progress.set_style(
+        ProgressStyle::with_template("{spinner} simulating [{bar:40}] {percent:>3}% eta {eta}")
+            .context("progress template")?
+            .progress_chars("=> "),
+    );
+    Ok(progress)
 }

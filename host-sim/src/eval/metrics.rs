@@ -1,0 +1,169 @@
+//! The track against the truth: position error, availability and motion-class accuracy.
+
+use aim_tracker::motion::MotionClass;
+use aim_tracker::observation::wrap_pi;
+use aim_tracker::tracker::Fix;
+
+use crate::truth::Truth;
+
+/// Speed from which the truth counts as moving, m/s.
+pub const MOVING_MPS: f64 = 0.2;
+/// Yaw rate from which the truth counts as yawing, rad/s.
+pub const YAWING_RAD_S: f64 = 0.2;
+/// Time the tracker may take after its first frame before fixes are due, s.
+pub const WARM_UP_S: f64 = 0.25;
+
+/// Truth position, velocity and yaw rate at time `t` (linear interpolation), or `None`
+/// outside the truth's time span.
+pub fn truth_at(truth: &Truth, t: f64) -> Option<([f64; 3], [f64; 3], f64)> {
+    let rows = &truth.rows;
+    let i = rows.partition_point(|r| r.t_s <= t);
+    if i == 0 || i >= rows.len() {
+        return None;
+    }
+    let (a, b) = (&rows[i - 1], &rows[i]);
+    let dt = b.t_s - a.t_s;
+    let w = if dt > 0.0 { (t - a.t_s) / dt } else { 0.0 };
+    let lerp = |x: [f64; 3], y: [f64; 3]| {
+        [x[0] + w * (y[0] - x[0]), x[1] + w * (y[1] - x[1]), x[2] + w * (y[2] - x[2])]
+    };
+    let yaw_rate = if dt > 0.0 { wrap_pi(b.yaw_rad - a.yaw_rad) / dt } else { 0.0 };
+    Some((lerp(a.position, b.position), lerp(a.velocity, b.velocity), yaw_rate))
+}
+
+/// The motion class of the truth at time `t`.
+pub fn truth_class(truth: &Truth, t: f64) -> Option<MotionClass> {
+    truth_at(truth, t).map(|(_, v, w)| MotionClass::of_kinematics(v, w, MOVING_MPS, YAWING_RAD_S))
+}
+
+/// Error statistics of one track.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    /// Mean 3-D position error, m.
+    pub mean_m: f64,
+    /// Median error, m.
+    pub median_m: f64,
+    /// 90th percentile of the error, m.
+    pub p90_m: f64,
+    /// Fraction of due output instants that have a fix.
+    pub availability: f64,
+    /// Fixes compared with the truth.
+    pub fixes: usize,
+    /// Output instants due.
+    pub due: usize,
+    /// Fraction of fixes whose motion class equals the truth's.
+    pub motion_accuracy: f64,
+    /// Fraction of fixes whose LoS flag equals the truth's (None without LoS truth).
+    pub los_accuracy: Option<f64>,
+}
+
+/// The `p` quantile of sorted values (linear interpolation).
+fn quantile(sorted: &[f64], p: f64) -> f64 {
+    aim_tracker::iqr::quantile_sorted(sorted, p)
+}
+
+/// Compares fixes with the truth. Output instants are due every `period_s` from `WARM_UP_S`
+/// after `first_input_t` to `last_input_t` (both s); `array_index` picks the LoS column.
+pub fn evaluate(
+    fixes: &[Fix],
+    truth: &Truth,
+    period_s: f64,
+    first_input_t: f64,
+    last_input_t: f64,
+    array_index: usize,
+) -> Summary {
+    let start = first_input_t + WARM_UP_S;
+    let first_k = (start / period_s - 1e-9).ceil() as i64;
+    let last_k = (last_input_t / period_s + 1e-9).floor() as i64;
+    let due = (last_k - first_k + 1).max(0) as usize;
+    let mut errors = Vec::new();
+    let mut class_right = 0;
+    let mut los_right = 0;
+    let mut los_known = 0;
+    let mut counted = 0;
+    for f in fixes.iter().filter(|f| f.t >= start - 1e-9 && f.t <= last_input_t + 1e-9) {
+        let Some((p, v, w)) = truth_at(truth, f.t) else { continue };
+        counted += 1;
+        errors.push(
+            ((f.position[0] - p[0]).powi(2)
+                + (f.position[1] - p[1]).powi(2)
+                + (f.position[2] - p[2]).powi(2))
+            .sqrt(),
+        );
+        if f.motion == MotionClass::of_kinematics(v, w, MOVING_MPS, YAWING_RAD_S) {
+            class_right += 1;
+        }
+        let i =
+            truth.rows.partition_point(|r| r.t_s <= f.t).min(truth.rows.len().saturating_sub(1));
+        if let Some(&los) = truth.rows.get(i).and_then(|r| r.los.get(array_index)) {
+            los_known += 1;
+            if los == f.los {
+                los_right += 1;
+            }
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    let n = errors.len().max(1) as f64;
+    Summary {
+        mean_m: errors.iter().sum::<f64>() / n,
+        median_m: quantile(&errors, 0.5),
+        p90_m: quantile(&errors, 0.9),
+        availability: if due > 0 { counted.min(due) as f64 / due as f64 } else { 0.0 },
+        fixes: counted,
+        due,
+        motion_accuracy: class_right as f64 / n,
+        los_accuracy: (los_known > 0).then(|| los_right as f64 / los_known as f64),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::truth::TruthRow;
+
+    fn row(t: f64, x: f64, vx: f64) -> TruthRow {
+        TruthRow {
+            t_s: t,
+            position: [x, 0.0, 2.0],
+            velocity: [vx, 0.0, 0.0],
+            acceleration: [0.0; 3],
+            yaw_rad: 0.0,
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            rotor_hz: vec![],
+            los: vec![true],
+        }
+    }
+
+    #[test]
+    fn errors_availability_and_classes() {
+        // Truth: 1 m/s along x for 2 s.
+        let truth = Truth {
+            blades: 2,
+            array_ids: vec![1],
+            rows: (0..=200).map(|k| row(k as f64 * 0.01, k as f64 * 0.01, 1.0)).collect(),
+        };
+        // Fixes every 0.1 s from 0.3 s to 1.9 s, each 0.5 m off in y, one missing (1.0 s).
+        let fixes: Vec<Fix> = (3..=19)
+            .filter(|&k| k != 10)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                Fix {
+                    t,
+                    position: [t, 0.5, 2.0],
+                    velocity: [1.0, 0.0, 0.0],
+                    sigma: [0.1; 3],
+                    motion: if k < 6 { MotionClass::Hover } else { MotionClass::Horizontal },
+                    los: true,
+                }
+            })
+            .collect();
+        let s = evaluate(&fixes, &truth, 0.1, 0.0, 1.9, 0);
+        assert_eq!(s.due, 17); // 0.3 … 1.9 s
+        assert_eq!(s.fixes, 16);
+        assert!((s.availability - 16.0 / 17.0).abs() < 1e-12);
+        assert!((s.mean_m - 0.5).abs() < 1e-9 && (s.p90_m - 0.5).abs() < 1e-9);
+        assert!((s.motion_accuracy - 13.0 / 16.0).abs() < 1e-12, "{}", s.motion_accuracy);
+        assert_eq!(s.los_accuracy, Some(1.0));
+    }
+}
