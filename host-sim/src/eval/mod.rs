@@ -9,3 +9,62 @@
 pub mod link;
 pub mod metrics;
 pub mod plot;
+
+#[cfg(test)]
+mod tests {
+    use aim_tracker::filter::FilterKind;
+    use aim_tracker::intake::FrameConverter;
+    use aim_tracker::observation::Input;
+    use aim_tracker::profile::Profile;
+    use aim_tracker::tracker::{Tracker, TrackerConfig};
+
+    use super::{link, metrics};
+    use crate::scenario::Scenario;
+
+    /// The whole chain on a short free-field flight: every byte decodes, every period after
+    /// warm-up has a finite fix from both filters, and the LoS flag says what free field is.
+    #[test]
+    fn short_flight_end_to_end() {
+        let text = r#"
+seed = 3
+[drone]
+preset = "dji-mini-2"
+[path]
+kind = "waypoints"
+points = [[2.0, 1.0, 1.5], [5.0, 1.0, 1.5]]
+hover_start_s = 2.0
+hover_end_s = 1.0
+[[array]]
+id = 4
+position = [0.0, 0.0, 0.05]
+"#;
+        let scenario = Scenario::from_toml(text, "short").unwrap();
+        let sim = crate::simulate(&scenario, &indicatif::ProgressBar::hidden()).unwrap();
+        let site_text = sim.site.to_toml().unwrap();
+        let site = aim_tracker::site::Site::parse(&site_text, "site.toml".as_ref()).unwrap();
+        let bytes = link::link_bytes(&sim.arrays[0], crate::DEFAULT_FULL_SCALE_PA).unwrap();
+        let (frames, errors) = link::decode_frames(&bytes);
+        assert_eq!(errors, 0);
+        let mut converter = FrameConverter::new(site.clone());
+        let inputs: Vec<Input> = frames.iter().filter_map(|f| converter.convert(f)).collect();
+        assert!(inputs.iter().any(|i| matches!(i, Input::Bearing(_))));
+        assert!(inputs.iter().any(|i| matches!(i, Input::Spectrum(_))));
+        let (first, last) = (inputs[0].t(), inputs[inputs.len() - 1].t());
+        for kind in [FilterKind::Paper, FilterKind::Aim] {
+            let mut tracker =
+                Tracker::new(site.clone(), Profile::dji_mini_2(), kind, TrackerConfig::default())
+                    .unwrap();
+            let mut fixes = Vec::new();
+            for i in inputs.iter().cloned() {
+                fixes.extend(tracker.push(i));
+            }
+            fixes.extend(tracker.flush());
+            let s = metrics::evaluate(&fixes, &sim.truth, 0.1, first, last, 0);
+            assert!(s.due > 40, "{s:?}");
+            assert_eq!(s.availability, 1.0, "{kind:?}: {s:?}");
+            assert!(fixes.iter().all(|f| f.position.iter().all(|x| x.is_finite())));
+            assert!(s.los_accuracy.unwrap() >= 0.9, "{kind:?}: {s:?}");
+            eprintln!("{kind:?}: {s:?}");
+        }
+    }
+}
