@@ -22,7 +22,6 @@ use rand::{rngs::StdRng, Rng, SeedableRng};
 
 pub mod air;
 pub mod array;
-pub mod eval;
 pub mod filter;
 pub mod flight;
 pub mod noise;
@@ -164,10 +163,10 @@ impl Trajectory for CentrePath<'_> {
 enum Reach {
     /// Every path: direct, reflections, diffraction.
     All,
-    /// The direct path and the diffracted one.
+    /// The straight path only.
     Direct,
-    /// The reflections only.
-    Reflections,
+    /// Every path but the straight one: reflections and diffraction.
+    Indirect,
     /// The direct path in free field (the diffuse field's plane waves).
     FreeDirect,
 }
@@ -237,7 +236,7 @@ pub fn simulate_with(
                 *a += b;
             }
         }
-        let reach = if mode == RotorSources::Centre { Reach::All } else { Reach::Reflections };
+        let reach = if mode == RotorSources::Centre { Reach::All } else { Reach::Indirect };
         signals.push((sum, Box::new(CentrePath(&log)), reach));
     }
     drop(per_rotor);
@@ -279,10 +278,10 @@ pub fn simulate_with(
     let paths = medium.path_kinds();
     let is_direct = |k: &PathKind| match k {
         PathKind::Image(i) => i.order == 0,
-        PathKind::Diffracted => true,
+        PathKind::Diffracted => false,
     };
     let direct_paths: Vec<PathKind> = paths.iter().copied().filter(is_direct).collect();
-    let reflections: Vec<PathKind> = paths.iter().copied().filter(|k| !is_direct(k)).collect();
+    let indirect: Vec<PathKind> = paths.iter().copied().filter(|k| !is_direct(k)).collect();
     let free_direct = [PathKind::Image(room::Image::DIRECT)];
 
     // Jobs: one per microphone.
@@ -328,7 +327,7 @@ pub fn simulate_with(
                 let (m, p): (&Medium, &[PathKind]) = match e.reach {
                     Reach::All => (&medium, &paths),
                     Reach::Direct => (&medium, &direct_paths),
-                    Reach::Reflections => (&medium, &reflections),
+                    Reach::Indirect => (&medium, &indirect),
                     Reach::FreeDirect => (&free, &free_direct),
                 };
                 propagation::render(m, &e.signal, e.trajectory.as_ref(), p, &rx, block, chunk);

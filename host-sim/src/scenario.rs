@@ -259,9 +259,10 @@ fn d_truth() -> f64 {
 pub enum RotorSources {
     /// Each rotor is a point source at its hub on every path (cost grows with the rotor count).
     Each,
-    /// Each rotor at its hub on the direct and diffracted paths; on reflected paths, whose
-    /// delays differ far more between microphones than the hubs' offsets matter, all rotors
-    /// radiate from the centre of mass. The default.
+    /// Each rotor at its hub on the straight path, which the array hears first and strongest;
+    /// on reflected and diffracted paths, weaker and later, all rotors radiate from the centre
+    /// of mass (moving a hub to the centre changes a path by at most the arm length). The
+    /// default: about the cost of two `centre` renders.
     Direct,
     /// All rotors radiate from the centre of mass (N times cheaper; no inter-rotor phase).
     Centre,
