@@ -304,7 +304,12 @@ impl Tracker {
             d.moving && (d.zenith_rad.sin() * d.azimuth_rate).abs() < 0.3 * d.zenith_rate.abs()
         });
         let multiple = split_heard || (excess_significant && excess > 0.0 && !zenith_only);
-        let raw = MotionClass::from_cues(multiple, moving);
+        // Table I's "one peak, DoA unstable" is a climb only if the DoA moves in zenith alone;
+        // a DoA sweeping in azimuth is horizontal flight whose split went unheard.
+        let raw = match MotionClass::from_cues(multiple, moving) {
+            MotionClass::Vertical if !zenith_only => MotionClass::Horizontal,
+            class => class,
+        };
         let motion = self.classifier.update(t, raw);
         let groups = self.spectra.back().map_or(0, |s| s.2);
         if motion == MotionClass::Hover && !excess_significant {
