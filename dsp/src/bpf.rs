@@ -167,6 +167,8 @@ impl Decimator {
 #[derive(Debug, Clone)]
 pub struct SpectralPath {
     decimator: Decimator,
+    /// Input samples per mono sample (the front end's spatial decimation).
+    mono_decimation: usize,
     ring: [f32; ANALYSIS_LEN],
     write: usize,
     /// Decimated samples produced since configuration.
@@ -179,6 +181,7 @@ impl SpectralPath {
     pub const fn empty() -> Self {
         Self {
             decimator: Decimator::empty(),
+            mono_decimation: 1,
             ring: [0.0; ANALYSIS_LEN],
             write: 0,
             produced: 0,
@@ -186,9 +189,11 @@ impl SpectralPath {
         }
     }
 
-    /// Designs the decimator for `input_rate_hz` and clears the state.
-    pub fn configure(&mut self, input_rate_hz: u32) {
-        self.decimator.configure(input_rate_hz);
+    /// Designs the decimator for a mono signal at `input_rate_hz / mono_decimation` and clears
+    /// the state.
+    pub fn configure(&mut self, input_rate_hz: u32, mono_decimation: usize) {
+        self.mono_decimation = mono_decimation.max(1);
+        self.decimator.configure(input_rate_hz / self.mono_decimation as u32);
         self.ring = [0.0; ANALYSIS_LEN];
         self.write = 0;
         self.produced = 0;
@@ -199,7 +204,7 @@ impl SpectralPath {
     /// when an analysis is due.
     pub fn push_block(&mut self, mono: &[i32], scale: f32) -> bool {
         let mut due = false;
-        let Self { decimator, ring, write, produced, since_analysis } = self;
+        let Self { decimator, ring, write, produced, since_analysis, .. } = self;
         decimator.push_block(mono, scale, &mut |y| {
             ring[*write] = y;
             *write = (*write + 1) % ANALYSIS_LEN;
@@ -234,12 +239,12 @@ impl SpectralPath {
     /// one hop.)
     pub fn window_start_sample(&self) -> u64 {
         let first = self.produced.saturating_sub(ANALYSIS_LEN as u64);
-        first * self.decimator.factor() as u64
+        first * (self.decimator.factor() * self.mono_decimation) as u64
     }
 
     /// Input-rate samples spanned by one analysis window.
     pub fn window_span_samples(&self) -> u32 {
-        (ANALYSIS_LEN * self.decimator.factor()) as u32
+        (ANALYSIS_LEN * self.decimator.factor() * self.mono_decimation) as u32
     }
 
     /// Windows the last [`ANALYSIS_LEN`] samples into `scratch`, transforms, finds peak groups.

@@ -6,6 +6,13 @@
 //! fs / (2π · 2^k) with k = [`dc_shift`] (7.5 Hz at 48 kHz, 5 Hz at 16 kHz). A block is then
 //! scaled by one shift common to all microphones (so their relative levels survive) and rounded
 //! to Q15: `value = q15 · 2^(exponent − 15)` of full scale, `exponent = −shift`.
+//!
+//! At 48 kHz the spatial path runs at 24 kHz (its band ends at 6 kHz): each DC-removed sample
+//! is taken to Q25 (`>> 6`) and a 7-tap half-band FIR `[−1, 0, 9, 16, 9, 0, −1] / 32` (integer
+//! taps, gain 1 at DC, −0.5 dB at 6 kHz, ≤ −25 dB above 18 kHz, where aliases would land in the
+//! band) keeps every second output, in Q30 (`|y| ≤ 1.125 · 2^30`, no overflow). The filter is
+//! the same for every microphone, so relative delays are untouched; its group delay is 3 input
+//! samples. The block exponent then counts from Q30: `exponent = 1 − shift`.
 
 use crate::MAX_MICS;
 
@@ -23,7 +30,42 @@ pub fn dc_shift(sample_rate_hz: u32) -> u32 {
     }
 }
 
-/// Per-microphone DC removal state and the clip counter.
+/// Spatial decimation factor of the front end for a sample rate: 2 at 48 kHz (24 kHz spatial
+/// rate), 1 at 16 kHz.
+pub fn spatial_decimation(sample_rate_hz: u32) -> usize {
+    if sample_rate_hz >= 32_000 {
+        2
+    } else {
+        1
+    }
+}
+
+/// History of one microphone's half-band decimator (Q25 samples). With the newest input pair
+/// (x(n−1), x(n)): `y(n) = 16·x(n−3) + 9·(x(n−2) + x(n−4)) − (x(n) + x(n−6))`.
+#[derive(Debug, Clone, Copy)]
+struct HalfBand {
+    /// x(n−3): the first sample of the previous pair.
+    odd: i32,
+    /// x(n−2), x(n−4), x(n−6): the second samples of the last three pairs, newest first.
+    even: [i32; 3],
+    /// The first sample of the pair being completed.
+    pending: i32,
+}
+
+impl HalfBand {
+    const ZERO: Self = Self { odd: 0, even: [0; 3], pending: 0 };
+}
+
+/// The half-band output for the pair (`first`, `second`), updating the history in registers.
+#[inline(always)]
+fn half_band(odd: &mut i32, e: &mut [i32; 3], first: i32, second: i32) -> i32 {
+    let y = 16 * *odd + 9 * (e[0] + e[1]) - (second + e[2]);
+    *e = [second, e[0], e[1]];
+    *odd = first;
+    y
+}
+
+/// Per-microphone DC removal (and spatial decimation) state and the clip counter.
 ///
 /// The DC estimate is kept in Q31 and updated as `dc += (x/2 − dc/2) >> (k − 1)`: all in 32 bits
 /// (one cycle per operation on the Cortex-M), never overflowing; its truncation leaves at most
@@ -31,15 +73,114 @@ pub fn dc_shift(sample_rate_hz: u32) -> u32 {
 #[derive(Debug, Clone)]
 pub struct FrontEnd {
     dc: [i32; MAX_MICS],
+    half_band: [HalfBand; MAX_MICS],
+    /// 1 while the first sample of a half-band pair has been taken and its second is due.
+    phase: u8,
+    decimation: u8,
     shift: u32,
     /// Words at full scale since the counter was last taken.
     pub clipped: u32,
 }
 
 impl FrontEnd {
-    /// A front end with zero DC estimates; `shift` from [`dc_shift`] (1..=30).
+    /// A front end with zero DC estimates; `shift` from [`dc_shift`] (1..=30); no decimation.
     pub const fn new(shift: u32) -> Self {
-        Self { dc: [0; MAX_MICS], shift, clipped: 0 }
+        Self {
+            dc: [0; MAX_MICS],
+            half_band: [HalfBand::ZERO; MAX_MICS],
+            phase: 0,
+            decimation: 1,
+            shift,
+            clipped: 0,
+        }
+    }
+
+    /// A front end for `sample_rate_hz`: DC shift from [`dc_shift`], decimation from
+    /// [`spatial_decimation`].
+    pub const fn for_rate(sample_rate_hz: u32) -> Self {
+        let mut f = Self::new(if sample_rate_hz >= 32_000 { 10 } else { 9 });
+        f.decimation = if sample_rate_hz >= 32_000 { 2 } else { 1 };
+        f
+    }
+
+    /// Input samples per output sample (1 or 2).
+    pub fn decimation(&self) -> usize {
+        self.decimation as usize
+    }
+
+    /// True when the next frame completes a half-band pair (or there is no decimation).
+    pub fn pair_open(&self) -> bool {
+        self.phase != 0
+    }
+
+    /// One whole TDM frame (`frame[mic]` for mic < `mics`): DC removal for every microphone and,
+    /// when an output sample is due, `out(mic, sample)` for each. Returns whether outputs were
+    /// written; raises `peak` to their largest absolute value.
+    pub fn push_frame(
+        &mut self,
+        frame: &[i32],
+        mics: usize,
+        peak: &mut u32,
+        out: &mut impl FnMut(usize, i32),
+    ) -> bool {
+        if self.decimation == 1 {
+            for (mic, &x) in frame[..mics].iter().enumerate() {
+                let y = self.remove_dc_one(mic, x, peak);
+                out(mic, y);
+            }
+            return true;
+        }
+        let mut ignore = 0u32;
+        let second = self.phase != 0;
+        for (mic, &x) in frame[..mics].iter().enumerate() {
+            let s = self.remove_dc_one(mic, x, &mut ignore) >> 6;
+            let h = &mut self.half_band[mic];
+            if second {
+                let y = half_band(&mut h.odd, &mut h.even, h.pending, s);
+                *peak = (*peak).max(y.unsigned_abs());
+                out(mic, y);
+            } else {
+                h.pending = s;
+            }
+        }
+        self.phase ^= 1;
+        second
+    }
+
+    /// De-interleaves microphone `mic` from an even number of whole TDM frames (`frames`,
+    /// `slots` words each, starting a half-band pair) into `out` (one sample per two frames),
+    /// removing DC and decimating; counts clipped words and raises `peak` to the largest
+    /// absolute output.
+    pub fn decimate_frames(
+        &mut self,
+        mic: usize,
+        frames: &[i32],
+        slots: usize,
+        out: &mut [i32],
+        peak: &mut u32,
+    ) {
+        let k1 = self.shift.clamp(1, 30) - 1;
+        if mic >= slots || mic >= MAX_MICS {
+            return;
+        }
+        let mut dc = self.dc[mic];
+        let HalfBand { mut odd, mut even, .. } = self.half_band[mic];
+        let (mut p, mut clipped) = (*peak, 0u32);
+        for (o, pair) in out.iter_mut().zip(frames.chunks_exact(2 * slots)) {
+            let (a, b) = (pair[mic], pair[slots + mic]);
+            clipped += u32::from(a >= CLIP_LEVEL || a <= -CLIP_LEVEL);
+            clipped += u32::from(b >= CLIP_LEVEL || b <= -CLIP_LEVEL);
+            let first = Self::step(&mut dc, k1, a) >> 6;
+            let second = Self::step(&mut dc, k1, b) >> 6;
+            let y = half_band(&mut odd, &mut even, first, second);
+            p = p.max(y.unsigned_abs());
+            *o = y;
+        }
+        self.dc[mic] = dc;
+        self.half_band[mic].odd = odd;
+        self.half_band[mic].even = even;
+        self.clipped = self.clipped.saturating_add(clipped);
+        *peak = p;
     }
 
     #[inline(always)]

@@ -61,8 +61,9 @@ impl Default for Twiddles {
     }
 }
 
-/// Lag step of the coarse search, samples.
-pub const COARSE_STEP: usize = 2;
+/// Lag step of the coarse search, samples of the spatial rate (24 kHz at 48 kHz input: a
+/// quarter period of the 6 kHz band edge).
+pub const COARSE_STEP: usize = 1;
 /// Most Newton steps of the sub-sample refinement.
 const NEWTON_STEPS: usize = 3;
 
@@ -231,7 +232,7 @@ pub fn estimate_delay(
 ) -> DelayEstimate {
     // Coarse grid every COARSE_STEP samples over ±max_lag (rounded up to the grid): the
     // PHAT-band correlation has no detail finer than a quarter period of the top band edge
-    // (6 kHz at 48 kHz: 2 samples), and Newton refines below.
+    // (6 kHz at the 24 kHz spatial rate: 1 sample), and Newton refines below.
     let half = max_lag.min(crate::MAX_LAG).div_ceil(COARSE_STEP);
     let n = 2 * half + 1;
     let mut r = [0.0f32; 2 * crate::MAX_LAG / COARSE_STEP + 3];
@@ -282,12 +283,14 @@ pub fn estimate_delay(
             break;
         }
         let delta = (-d1 / d2).clamp(-0.5, 0.5);
-        tau = (tau + delta).clamp(centre - step, centre + step);
+        // max/min, not `clamp`: run-time bounds would link a panic message with float
+        // formatting (~20 KB of flash).
+        tau = (tau + delta).max(centre - step).min(centre + step);
         if libm::fabsf(delta) < 1e-4 {
             break;
         }
     }
-    let tau = tau.clamp(-(max_lag as f32), max_lag as f32);
+    let tau = tau.max(-(max_lag as f32)).min(max_lag as f32);
     let full = (g.len() as f32) * blocks.max(1) as f32;
     DelayEstimate {
         delay_samples: tau,

@@ -22,6 +22,9 @@ use crate::{
     Config, ConfigError, Doa, Health, Output, MAX_BAND_BINS, MAX_BLOCK_LEN, MAX_MICS, MAX_PAIRS,
 };
 
+/// Most words per TDM frame ([`Config::tdm_slots`]).
+const MAX_TDM_SLOTS: usize = 16;
+
 /// Scratch floats: the spatial FFT (first [`MAX_BLOCK_LEN`]) with the unit band spectra of all
 /// microphones after it, or the whole BPF transform. Both uses fit exactly.
 const SCRATCH_LEN: usize = ANALYSIS_LEN;
@@ -42,9 +45,17 @@ pub struct Pipeline {
     twiddles: Twiddles,
     // front end
     front: FrontEnd,
+    /// DC-removed (at 48 kHz also decimated) samples of the block being filled, per microphone.
     block: [[i32; MAX_BLOCK_LEN]; MAX_MICS],
+    /// The words of a TDM frame split across `push` calls.
+    partial: [i32; MAX_TDM_SLOTS],
     slot: usize,
+    /// Samples of `block` filled, at the spatial rate.
     fill: usize,
+    /// Samples per block at the spatial rate: the spatial FFT length.
+    fft_len: usize,
+    /// Input samples per spatial sample (1 or 2).
+    decimation: usize,
     block_start: u64,
     /// Largest absolute DC-removed sample of the block being filled.
     block_peak: u32,
@@ -82,8 +93,11 @@ impl Pipeline {
             twiddles: Twiddles::empty(),
             front: FrontEnd::new(10),
             block: [[0; MAX_BLOCK_LEN]; MAX_MICS],
+            partial: [0; MAX_TDM_SLOTS],
             slot: 0,
             fill: 0,
+            fft_len: 0,
+            decimation: 1,
             block_start: 0,
             block_peak: 0,
             blocks: 0,
@@ -133,9 +147,11 @@ impl Pipeline {
         }
         self.pair_count = n;
         self.twiddles = Twiddles::new();
-        crate::window::hann(&mut self.window[..config.block_len]);
-        self.front = FrontEnd::new(frontend::dc_shift(config.sample_rate_hz));
-        self.spectral.configure(config.sample_rate_hz);
+        self.front = FrontEnd::for_rate(config.sample_rate_hz);
+        self.decimation = self.front.decimation();
+        self.fft_len = config.block_len / self.decimation;
+        crate::window::hann(&mut self.window[..self.fft_len]);
+        self.spectral.configure(config.sample_rate_hz, self.decimation);
         self.reset_stream();
         self.configured = true;
         Ok(())
@@ -181,31 +197,47 @@ impl Pipeline {
             return;
         }
         let slots = self.config.tdm_slots;
-        let n = self.config.block_len;
+        let n = self.fft_len;
+        let d = self.decimation;
         let mut words = words;
         while !words.is_empty() {
-            if self.slot == 0 && words.len() >= slots {
-                // Whole frames: the common case, one tight loop per frame.
-                let frames = (words.len() / slots).min(n - self.fill);
-                let (now, rest) = words.split_at(frames * slots);
+            // Whole frames in the common case: one tight loop per microphone (per pair of
+            // frames when decimating).
+            let runs = if self.slot == 0 && !self.front.pair_open() {
+                (words.len() / (d * slots)).min(n - self.fill)
+            } else {
+                0
+            };
+            if runs > 0 {
+                let (now, rest) = words.split_at(runs * d * slots);
                 for (mic, ch) in self.block[..self.mics].iter_mut().enumerate() {
-                    let out = &mut ch[self.fill..self.fill + frames];
-                    self.front.remove_dc_frames(mic, now, slots, out, &mut self.block_peak);
+                    let out = &mut ch[self.fill..self.fill + runs];
+                    if d == 1 {
+                        self.front.remove_dc_frames(mic, now, slots, out, &mut self.block_peak);
+                    } else {
+                        self.front.decimate_frames(mic, now, slots, out, &mut self.block_peak);
+                    }
                 }
-                self.fill += frames;
+                self.fill += runs;
                 words = rest;
             } else {
-                // A frame split across calls: word by word until the next frame starts.
-                if self.slot < self.mics {
-                    self.block[self.slot][self.fill] =
-                        self.front.remove_dc_one(self.slot, words[0], &mut self.block_peak);
+                // A frame split across calls, or an odd frame: gather it, then push it whole.
+                let take = (slots - self.slot).min(words.len());
+                self.partial[self.slot..self.slot + take].copy_from_slice(&words[..take]);
+                words = &words[take..];
+                self.slot += take;
+                if self.slot < slots {
+                    break;
                 }
-                words = &words[1..];
-                self.slot += 1;
-                if self.slot == slots {
-                    self.slot = 0;
-                    self.fill += 1;
-                }
+                self.slot = 0;
+                let (block, fill) = (&mut self.block, self.fill);
+                let produced = self.front.push_frame(
+                    &self.partial[..slots],
+                    self.mics,
+                    &mut self.block_peak,
+                    &mut |mic, y| block[mic][fill] = y,
+                );
+                self.fill += usize::from(produced);
             }
             if self.fill == n {
                 self.fill = 0;
@@ -218,7 +250,7 @@ impl Pipeline {
         let n = self.config.block_len;
         let peak = core::mem::take(&mut self.block_peak);
         let shift = frontend::block_shift(peak);
-        self.last_exponent = -(shift as i8);
+        self.last_exponent = self.q_exponent() - shift as i8;
         self.health_peak = self.health_peak.max(peak);
 
         self.spatial_block(shift);
@@ -242,11 +274,17 @@ impl Pipeline {
         }
     }
 
+    /// Exponent of the block samples before the block shift: 0 for Q31, 1 for the Q30 of the
+    /// half-band decimator.
+    fn q_exponent(&self) -> i8 {
+        i8::from(self.decimation == 2)
+    }
+
     /// Q15 conversion, window, FFT and PHAT band of every microphone, then every pair's cross
     /// spectrum. Leaves the sum of the microphones' Q15 samples in `block[0]` (the mono signal
     /// of the spectral path).
     fn spatial_block(&mut self, shift: u32) {
-        let n = self.config.block_len;
+        let n = self.fft_len;
         let nb = self.band_bins;
         let (fft_buf, units) = self.scratch.split_at_mut(MAX_BLOCK_LEN);
         let [mono, others @ ..] = &mut self.block;
@@ -273,8 +311,12 @@ impl Pipeline {
                 if let Some(buf) = fft_buf.first_chunk_mut::<1024>() {
                     gcc_phat::phat_band(microfft::real::rfft_1024(buf), self.first_bin, unit);
                 }
-            } else if let Some(buf) = fft_buf.first_chunk_mut::<512>() {
-                gcc_phat::phat_band(microfft::real::rfft_512(buf), self.first_bin, unit);
+            } else if n == 512 {
+                if let Some(buf) = fft_buf.first_chunk_mut::<512>() {
+                    gcc_phat::phat_band(microfft::real::rfft_512(buf), self.first_bin, unit);
+                }
+            } else if let Some(buf) = fft_buf.first_chunk_mut::<256>() {
+                gcc_phat::phat_band(microfft::real::rfft_256(buf), self.first_bin, unit);
             }
         }
         for (pair, acc) in self.pairs[..self.pair_count].iter().zip(&mut self.cross) {
@@ -290,14 +332,16 @@ impl Pipeline {
             self.pairs[..self.pair_count].iter().zip(&mut self.cross).zip(&mut self.delays)
         {
             gcc_phat::weight_by_coherence(&mut acc[..nb], self.config.average_blocks);
+            // The search runs at the spatial rate; the delay is reported in input samples.
             *d = gcc_phat::estimate_delay(
                 &acc[..nb],
                 self.first_bin,
-                self.config.block_len,
-                pair.max_lag as usize,
+                self.fft_len,
+                (pair.max_lag as usize).div_ceil(self.decimation),
                 self.config.average_blocks,
                 &self.twiddles,
             );
+            d.delay_samples *= self.decimation as f32;
             acc[..nb].fill(Complex32::new(0.0, 0.0));
         }
         let delays = &self.delays[..self.pair_count];
@@ -318,8 +362,9 @@ impl Pipeline {
     /// full scale) into the decimator; BPF analysis
     /// when one is due.
     fn spectral_block(&mut self, shift: u32, sink: &mut impl FnMut(Output)) {
-        let scale = 1.0 / ((1u64 << (shift + 15)) as f32 * self.mics as f32);
-        let due = self.spectral.push_block(&self.block[0][..self.config.block_len], scale);
+        let bits = shift + 15 - self.q_exponent() as u32;
+        let scale = 1.0 / ((1u64 << bits) as f32 * self.mics as f32);
+        let due = self.spectral.push_block(&self.block[0][..self.fft_len], scale);
         if due {
             let peaks = self.spectral.analyze(&self.config, &mut self.scratch);
             sink(Output::Peaks(peaks));
@@ -327,7 +372,8 @@ impl Pipeline {
     }
 
     fn take_health(&mut self) -> Health {
-        let peak = self.health_peak as f32 / 2_147_483_648.0;
+        let full_scale = (1u64 << (31 - self.q_exponent())) as f32;
+        let peak = self.health_peak as f32 / full_scale;
         let h = Health {
             sample_index: self.health_start,
             blocks: self.blocks,
