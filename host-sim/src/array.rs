@@ -9,7 +9,7 @@ use nalgebra::Vector3;
 /// Microphone positions of a named preset, array frame, metres. The presets match `aim-dsp`'s
 /// `Geometry` constructors: `respeaker-6mic` (circle r = 0.0463 m, mic 0 on +x,
 /// counter-clockwise), `respeaker-4mic` (square of side 0.065 m, centred, mic 0 at +x+y,
-/// counter-clockwise), `circle-8mic` (circle r = 0.0463 m, mic 0 on +x, counter-clockwise).
+/// counter-clockwise), `circle-8mic` (circle r = 0.05 m, mic 0 on +x, counter-clockwise).
 pub fn preset_positions(name: &str) -> Option<Vec<[f64; 2]>> {
     let circle = |n: usize, r: f64, start_deg: f64| {
         (0..n)
@@ -22,7 +22,7 @@ pub fn preset_positions(name: &str) -> Option<Vec<[f64; 2]>> {
     match name {
         "respeaker-6mic" => Some(circle(6, 0.0463, 0.0)),
         "respeaker-4mic" => Some(circle(4, 0.065 / std::f64::consts::SQRT_2, 45.0)),
-        "circle-8mic" => Some(circle(8, 0.0463, 0.0)),
+        "circle-8mic" => Some(circle(8, 0.05, 0.0)),
         _ => None,
     }
 }
@@ -117,6 +117,25 @@ mod tests {
         let q = preset_positions("respeaker-4mic").unwrap();
         let side = ((q[0][0] - q[1][0]).powi(2) + (q[0][1] - q[1][1]).powi(2)).sqrt();
         assert!((side - 0.065).abs() < 1e-12);
+    }
+
+    /// The simulator must place the microphones where the on-chip DSP assumes they are.
+    #[test]
+    fn presets_match_the_dsp_presets() {
+        let dsp = [
+            ("respeaker-6mic", aim_dsp::Geometry::respeaker_6mic()),
+            ("respeaker-4mic", aim_dsp::Geometry::respeaker_4mic()),
+            ("circle-8mic", aim_dsp::Geometry::circle_8mic()),
+        ];
+        for (name, geometry) in dsp {
+            let sim = preset_positions(name).unwrap();
+            assert_eq!(sim.len(), geometry.len(), "{name}");
+            for (s, d) in sim.iter().zip(geometry.positions()) {
+                for k in 0..2 {
+                    assert!((s[k] - f64::from(d[k])).abs() < 1e-7, "{name}: {s:?} vs {d:?}");
+                }
+            }
+        }
     }
 
     #[test]

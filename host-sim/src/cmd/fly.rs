@@ -33,8 +33,8 @@ pub struct Args {
     /// Output directory (default: `fly-<scenario name>`).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Drone profile for the tracker (default: `tracker/profiles/<drone preset>.toml` when the
-    /// scenario names a preset the tracker knows, else the bundled DJI Mini 2).
+    /// Drone profile for the tracker (TOML, see `tracker/profiles/`; default: the bundled
+    /// DJI Mini 2 profile).
     #[arg(long)]
     profile: Option<PathBuf>,
     /// Output period of the tracker, s.
