@@ -55,6 +55,23 @@ impl Twiddles {
     }
 }
 
+impl Twiddles {
+    /// (sin, cos) of 2π·u/1024 for real `u` (|u| < 2^22): the nearest grid point from the
+    /// table, rotated by the remainder δ (|δ| ≤ π/1024) with sin δ ≈ δ − δ³/6,
+    /// cos δ ≈ 1 − δ²/2 + δ⁴/24 (truncation below 10⁻¹⁴). Plain f32 arithmetic: libm's `sinf`
+    /// and `cosf` reduce in f64, which the Cortex-M4F emulates in software (hundreds of
+    /// instructions a call).
+    pub fn sin_cos_grid(&self, u: f32) -> (f32, f32) {
+        let m = libm::floorf(u + 0.5);
+        let d = (u - m) * (2.0 * PI / TWIDDLE_GRID as f32);
+        let d2 = d * d;
+        let (sd, cd) = (d - d * d2 * (1.0 / 6.0), 1.0 - 0.5 * d2 + d2 * d2 * (1.0 / 24.0));
+        let index = (m as i32).rem_euclid(TWIDDLE_GRID as i32) as usize;
+        let (sg, cg) = self.sin_cos(index, TWIDDLE_GRID);
+        (sg * cd + cg * sd, cg * cd - sg * sd)
+    }
+}
+
 impl Default for Twiddles {
     fn default() -> Self {
         Self::new()
@@ -142,17 +159,20 @@ impl DelayEstimate {
     }
 }
 
-/// R(τ) and its first two derivatives (per sample, per sample²) at a real lag τ.
+/// R(τ) and its first two derivatives (per sample, per sample²) at a real lag τ; `fft_len`
+/// divides 1024 (phases from `tw`).
 pub fn correlation_derivatives(
     g: &[Complex32],
     first_bin: usize,
     fft_len: usize,
     tau: f32,
+    tw: &Twiddles,
 ) -> [f32; 3] {
     let w = 2.0 * PI / fft_len as f32;
+    let grid_per_bin = (TWIDDLE_GRID / fft_len) as f32;
     // Phase of the first bin reduced exactly for the integer part of k0·τ.
-    let (s0, c0) = phase(first_bin, fft_len, tau);
-    let (ss, cs) = (libm::sinf(w * tau), libm::cosf(w * tau));
+    let (s0, c0) = phase(first_bin, fft_len, tau, tw);
+    let (ss, cs) = tw.sin_cos_grid(tau * grid_per_bin);
     let (mut s, mut c) = (s0, c0);
     let (mut r, mut r1, mut r2) = (0.0f32, 0.0f32, 0.0f32);
     let mut omega = w * first_bin as f32;
@@ -193,13 +213,13 @@ fn correlation_pm(
     (p - q, p + q)
 }
 
-/// sin, cos of 2π·k·τ/K, with the integer part of k·τ reduced modulo K first.
-fn phase(k: usize, fft_len: usize, tau: f32) -> (f32, f32) {
+/// sin, cos of 2π·k·τ/K, with the integer part of k·τ reduced modulo K first (K divides 1024).
+fn phase(k: usize, fft_len: usize, tau: f32, tw: &Twiddles) -> (f32, f32) {
     let whole = libm::floorf(tau);
     let frac = tau - whole;
     let int_phase = ((k as i32).wrapping_mul(whole as i32).rem_euclid(fft_len as i32)) as f32;
-    let a = 2.0 * PI * (int_phase + k as f32 * frac) / fft_len as f32;
-    (libm::sinf(a), libm::cosf(a))
+    // The scale to the 1024 grid is a power of two: exact.
+    tw.sin_cos_grid((int_phase + k as f32 * frac) * (TWIDDLE_GRID / fft_len) as f32)
 }
 
 /// Finds the delay of one pair from its averaged cross spectrum.
@@ -277,7 +297,7 @@ pub fn estimate_delay(
     let centre = tau;
     let mut height = peak;
     for _ in 0..NEWTON_STEPS {
-        let [v, d1, d2] = correlation_derivatives(g, first_bin, fft_len, tau);
+        let [v, d1, d2] = correlation_derivatives(g, first_bin, fft_len, tau, tw);
         height = v;
         if d2.is_nan() || d2 >= 0.0 {
             break;
@@ -349,12 +369,26 @@ mod tests {
     }
 
     #[test]
+    fn grid_sines_and_cosines_match_f64() {
+        let tw = Twiddles::new();
+        let mut worst = 0.0f64;
+        for i in -20_000..20_000 {
+            let u = i as f32 * 0.0731;
+            let (s, c) = tw.sin_cos_grid(u);
+            let (es, ec) = (2.0 * PI64 * u as f64 / 1024.0).sin_cos();
+            worst = worst.max((s as f64 - es).abs()).max((c as f64 - ec).abs());
+        }
+        assert!(worst < 3e-7, "worst error {worst}");
+    }
+
+    #[test]
     fn correlation_and_derivatives_match_direct_evaluation() {
         let g: Vec<Complex32> = (0..120)
             .map(|b| Complex32::new(libm::cosf(0.37 * b as f32), libm::sinf(1.3 * b as f32) * 0.5))
             .collect();
+        let tw = Twiddles::new();
         for &tau in &[-11.3f32, -2.5, 0.0, 0.71, 6.04, 13.9] {
-            let [r, r1, r2] = correlation_derivatives(&g, 7, 1024, tau);
+            let [r, r1, r2] = correlation_derivatives(&g, 7, 1024, tau, &tw);
             let (mut dr, mut dr1, mut dr2) = (0.0f64, 0.0f64, 0.0f64);
             for (b, x) in g.iter().enumerate() {
                 let w = 2.0 * PI64 * (7 + b) as f64 / 1024.0;
