@@ -248,11 +248,17 @@ impl SpectralPath {
     }
 
     /// Windows the last [`ANALYSIS_LEN`] samples into `scratch`, transforms, finds peak groups.
-    pub fn analyze(&self, config: &Config, scratch: &mut [f32; ANALYSIS_LEN]) -> Peaks {
+    /// `tw`: the phasor table ([`crate::gcc_phat::Twiddles::new`]) for the window.
+    pub fn analyze(
+        &self,
+        config: &Config,
+        scratch: &mut [f32; ANALYSIS_LEN],
+        tw: &crate::gcc_phat::Twiddles,
+    ) -> Peaks {
         let (old, new) = self.ring.split_at(self.write);
         scratch[..new.len()].copy_from_slice(new);
         scratch[new.len()..].copy_from_slice(old);
-        crate::window::apply_hann(scratch);
+        crate::window::apply_hann(scratch, tw);
         let mut peaks = find_peaks(scratch, config);
         peaks.sample_index = self.window_start_sample();
         peaks.span_samples = self.window_span_samples();
@@ -367,11 +373,19 @@ pub fn refine_peak(mags: &[f32], k: usize) -> (f32, f32) {
         1.0
     } else {
         let x = core::f32::consts::PI * delta;
-        libm::sinf(x) / x / (1.0 - delta * delta)
+        sin_half_turn(x) / x / (1.0 - delta * delta)
     };
     // A real sinusoid of amplitude A gives |X| = A·N/4 with a Hann window at the bin centre.
     let amplitude = 4.0 * m0 / (ANALYSIS_LEN as f32 * gain);
     (k as f32 + delta, amplitude)
+}
+
+/// sin x for |x| ≤ π/2 by its Taylor series to x¹¹ (truncation below 6·10⁻⁹): plain f32, no
+/// `libm::sinf` (which reduces in f64, software on the Cortex-M4F).
+fn sin_half_turn(x: f32) -> f32 {
+    let x2 = x * x;
+    x * (1.0
+        - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))))
 }
 
 fn harmonic_group(
@@ -453,6 +467,15 @@ mod tests {
     }
 
     #[test]
+    fn half_turn_sine_matches_f64() {
+        for i in -1000..=1000 {
+            let x = i as f32 * core::f32::consts::FRAC_PI_2 / 1000.0;
+            let e = (x as f64).sin();
+            assert!((sin_half_turn(x) as f64 - e).abs() < 2e-7, "sin {x}");
+        }
+    }
+
+    #[test]
     fn block_and_sample_pushes_agree_bit_for_bit() {
         let (mut a, mut b) = (Decimator::empty(), Decimator::empty());
         a.configure(48_000);
@@ -483,7 +506,7 @@ mod tests {
                         2.0 * core::f32::consts::PI * bin * t as f32 / ANALYSIS_LEN as f32 + 0.4,
                     );
             }
-            crate::window::apply_hann(&mut buf);
+            crate::window::apply_hann(&mut buf, &crate::gcc_phat::Twiddles::new());
             let config = Config::new(crate::Geometry::respeaker_4mic(), 48_000);
             let _ = find_peaks(&mut buf, &config); // leaves the magnitudes in buf
             let k = (199..=201).max_by(|&a, &b| buf[a].total_cmp(&buf[b])).unwrap();

@@ -366,7 +366,7 @@ impl Pipeline {
         let scale = 1.0 / ((1u64 << bits) as f32 * self.mics as f32);
         let due = self.spectral.push_block(&self.block[0][..self.fft_len], scale);
         if due {
-            let peaks = self.spectral.analyze(&self.config, &mut self.scratch);
+            let peaks = self.spectral.analyze(&self.config, &mut self.scratch, &self.twiddles);
             sink(Output::Peaks(peaks));
         }
     }

@@ -2,6 +2,8 @@
 
 use core::f32::consts::PI;
 
+use crate::gcc_phat::Twiddles;
+
 /// Fills `out` with the periodic Hann window of length `out.len()`: 0.5 − 0.5 cos(2πn/N).
 ///
 /// ```
@@ -19,16 +21,18 @@ pub fn hann(out: &mut [f32]) {
 
 /// Multiplies `buf` in place by the periodic Hann window of length `buf.len()`.
 ///
-/// The cosine comes from a rotating phasor re-seeded with `libm::cosf`/`sinf` every 64 samples,
-/// so a 4096-point window costs 64 sine/cosine pairs instead of 4096.
-pub fn apply_hann(buf: &mut [f32]) {
+/// The cosine comes from a rotating phasor re-seeded every 64 samples from the phasor table
+/// `tw` (exact grid points when `buf.len()` is a multiple of 64 dividing 65 536, e.g. 4096), so
+/// a 4096-point window costs one `libm` sine/cosine pair instead of 4096.
+pub fn apply_hann(buf: &mut [f32], tw: &Twiddles) {
     const RESEED: usize = 64;
     let n = buf.len();
     let step = 2.0 * PI / n as f32;
     let (ss, cs) = (libm::sinf(step), libm::cosf(step));
     for (chunk_index, chunk) in buf.chunks_mut(RESEED).enumerate() {
-        let a = step * (chunk_index * RESEED) as f32;
-        let (mut s, mut c) = (libm::sinf(a), libm::cosf(a));
+        // 2π·(chunk_index·RESEED)/n on the table's 1024-point grid.
+        let u = (chunk_index * RESEED) as f32 * (1024.0 / n as f32);
+        let (mut s, mut c) = tw.sin_cos_grid(u);
         for x in chunk {
             *x *= 0.5 - 0.5 * c;
             let c2 = c * cs - s * ss;
@@ -45,7 +49,7 @@ mod tests {
         let mut table = [0.0f32; 4096];
         super::hann(&mut table);
         let mut ones = [1.0f32; 4096];
-        super::apply_hann(&mut ones);
+        super::apply_hann(&mut ones, &crate::gcc_phat::Twiddles::new());
         let worst = table.iter().zip(&ones).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
         assert!(worst < 2e-6, "worst deviation {worst}");
     }
