@@ -67,6 +67,10 @@ fn half_band(odd: &mut i32, e: &mut [i32; 3], first: i32, second: i32) -> i32 {
     y
 }
 
+/// DC running-mean exponent k of a decimating front end (at the 24 kHz spatial rate: 7.5 Hz);
+/// a constant so the decimating loops keep it out of a register.
+const DECIMATED_DC_SHIFT: u32 = 9;
+
 /// Per-microphone DC removal (and spatial decimation) state and the clip counter.
 ///
 /// The DC estimate is kept in Q31 and updated as `dc += (x/2 − dc/2) >> (k − 1)`: all in 32 bits
@@ -102,7 +106,7 @@ impl FrontEnd {
     pub const fn for_rate(sample_rate_hz: u32) -> Self {
         // DC removal runs at 24 kHz when decimating, at 16 kHz otherwise: k = 9 either way
         // (7.5 Hz, resp. 5 Hz).
-        let mut f = Self::new(9);
+        let mut f = Self::new(DECIMATED_DC_SHIFT);
         f.decimation = if sample_rate_hz >= 32_000 { 2 } else { 1 };
         f
     }
@@ -134,7 +138,7 @@ impl FrontEnd {
             }
             return true;
         }
-        let k1 = self.shift.clamp(1, 30) - 1;
+        let k1 = DECIMATED_DC_SHIFT - 1;
         let second = self.phase != 0;
         for (mic, &x) in frame[..mics].iter().enumerate() {
             if x >= CLIP_LEVEL || x <= -CLIP_LEVEL {
@@ -166,7 +170,7 @@ impl FrontEnd {
         out: &mut [i32],
         peak: &mut u32,
     ) {
-        let k1 = self.shift.clamp(1, 30) - 1;
+        let k1 = DECIMATED_DC_SHIFT - 1;
         if mic >= slots || mic >= MAX_MICS {
             return;
         }
