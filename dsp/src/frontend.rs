@@ -287,7 +287,9 @@ pub fn block_shift(max_abs: u32) -> u32 {
 #[inline(always)]
 pub fn to_q15(q31: i32, shift: u32) -> i16 {
     let v = q31 << shift;
-    (((v >> 15) + 1) >> 1).min(i16::MAX as i32) as i16
+    // floor((v + 2^15) / 2^16): the saturating add (one QADD on the Cortex-M4) clips the one
+    // value that would round up past i16::MAX.
+    (v.saturating_add(1 << 15) >> 16) as i16
 }
 
 #[cfg(test)]
@@ -306,6 +308,19 @@ mod tests {
         assert_eq!(to_q15(-(1 << 15), 0), 0); // −0.5 LSB: ties round up
         assert_eq!(to_q15(3 << 15, 0), 2); // 1.5 LSB rounds up
         assert_eq!(to_q15(i32::MAX, 0), i16::MAX);
+    }
+
+    #[test]
+    fn q15_rounding_is_round_half_up_with_saturation() {
+        // The reference: ((v >> 15) + 1) >> 1, saturated to i16::MAX.
+        let mut v = 0x1234_5678i32;
+        for _ in 0..200_000 {
+            v = v.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            for x in [v, v >> 7, i32::MAX - (v & 0xFFFF), i32::MIN + (v & 0xFFFF)] {
+                let reference = (((x >> 15) + 1) >> 1).min(i16::MAX as i32) as i16;
+                assert_eq!(to_q15(x, 0), reference, "{x:#x}");
+            }
+        }
     }
 
     #[test]
