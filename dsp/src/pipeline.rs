@@ -319,10 +319,21 @@ impl Pipeline {
                 gcc_phat::phat_band(microfft::real::rfft_256(buf), self.first_bin, unit);
             }
         }
-        for (pair, acc) in self.pairs[..self.pair_count].iter().zip(&mut self.cross) {
-            let ui = &units[pair.i as usize * 2 * MAX_BAND_BINS..][..2 * nb];
-            let uj = &units[pair.j as usize * 2 * MAX_BAND_BINS..][..2 * nb];
-            gcc_phat::accumulate_cross(&mut acc[..nb], ui, uj);
+        // Pairs come as (0,1), (0,2), …: two neighbours sharing i are accumulated together.
+        let unit = |mic: u8| &units[mic as usize * 2 * MAX_BAND_BINS..][..2 * nb];
+        let mut p = 0;
+        while p < self.pair_count {
+            let pair = self.pairs[p];
+            let (ui, uj) = (unit(pair.i), unit(pair.j));
+            if p + 1 < self.pair_count && self.pairs[p + 1].i == pair.i {
+                let uk = unit(self.pairs[p + 1].j);
+                let (head, tail) = self.cross.split_at_mut(p + 1);
+                gcc_phat::accumulate_cross_two(&mut head[p][..nb], &mut tail[0][..nb], ui, uj, uk);
+                p += 2;
+            } else {
+                gcc_phat::accumulate_cross(&mut self.cross[p][..nb], ui, uj);
+                p += 1;
+            }
         }
     }
 
