@@ -8,7 +8,7 @@
 //!
 //! Memory is fixed: `size_of::<Pipeline>()` is 116 008 bytes on the Cortex-M4F (the
 //! `memory_budget` test keeps it ≤ 128 KiB), all of it in the struct, nothing on the heap and
-//! only small temporaries on the stack (912 bytes deep for `push`). The
+//! only small temporaries on the stack (904 bytes deep for `push`). The
 //! struct is `const`-constructible ([`Pipeline::empty`]) so the firmware can place it in a
 //! `static` and [`Pipeline::configure`] it there, without a large stack temporary.
 
