@@ -8,12 +8,8 @@ use anyhow::Context as _;
 /// Arguments of `aim record`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Serial port of the array board (`/dev/ttyACM0`, `COM3`).
-    #[arg(long)]
-    serial: String,
-    /// Baud rate.
-    #[arg(long, default_value_t = link::serial::DEFAULT_BAUD)]
-    baud: u32,
+    #[command(flatten)]
+    link: super::SerialArgs,
     /// File to write the raw bytes to (replaced if it exists). Replay with `aim frames FILE`.
     #[arg(long)]
     out: std::path::PathBuf,
@@ -33,11 +29,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(s) => anyhow::bail!("--duration must be a non-negative number of seconds, not {s}"),
         None => None,
     };
-    let mut port = link::serial::open(&args.serial, args.baud)?;
+    let mut port = args.link.open()?;
     let mut out = std::fs::File::create(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     // Tests and scripts wait for this line before they send: the port is configured now.
-    eprintln!("recording {} at {} baud to {}", args.serial, args.baud, args.out.display());
+    eprintln!(
+        "recording {} at {} baud to {}",
+        args.link.serial,
+        args.link.baud,
+        args.out.display()
+    );
     let spinner = indicatif::ProgressBar::new_spinner();
     let mut last_draw = Instant::now();
     let stats = link::record::record(
@@ -57,7 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         },
     )
-    .with_context(|| format!("recording {} to {}", args.serial, args.out.display()))?;
+    .with_context(|| format!("recording {} to {}", args.link.serial, args.out.display()))?;
     spinner.finish_and_clear();
     eprintln!(
         "recorded {} bytes ({} frames, {} damaged or unknown) to {}",
