@@ -8,11 +8,9 @@
 //! with `aim replay`) and `DIR/truth.csv`. With `--filter both` the tracks go to
 //! `DIR/paper/` and `DIR/aim/` from one simulation.
 use std::fmt::Write as _;
-use std::io::IsTerminal as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use aim_tracker::filter::FilterKind;
 use aim_tracker::intake::FrameConverter;
@@ -66,7 +64,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => Profile::dji_mini_2(),
     };
 
-    let progress = progress_bar()?;
+    let progress = host_sim::progress_bar("simulating");
     let sim =
         host_sim::simulate_with(&scenario, &host_sim::Options { threads: args.threads }, &progress)
             .with_context(|| format!("simulating {}", args.scenario.display()))?;
@@ -190,18 +188,4 @@ fn write_track(path: &Path, fixes: &[Fix], truth: &host_sim::truth::Truth) -> an
         );
     }
     std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
-}
-
-fn progress_bar() -> anyhow::Result<ProgressBar> {
-    let progress = if std::io::stderr().is_terminal() {
-        ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr())
-    } else {
-        ProgressBar::hidden()
-    };
-    progress.set_style(
-        ProgressStyle::with_template("{spinner} simulating [{bar:40}] {percent:>3}% eta {eta}")
-            .context("progress template")?
-            .progress_chars("=> "),
-    );
-    Ok(progress)
 }
