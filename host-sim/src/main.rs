@@ -27,23 +27,5 @@ fn main() -> std::process::ExitCode {
         Command::Analyze(args) => cmd::analyze::run(args),
         Command::Fly(args) => cmd::fly::run(args),
     };
-    // Errors are for people: the message and its causes, one line, no backtrace.
-    match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        // A reader that stopped reading (`aim replay … | head`) is not a failure.
-        Err(error) if is_broken_pipe(&error) => std::process::ExitCode::SUCCESS,
-        Err(error) => {
-            eprintln!("error: {error:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
-}
-
-/// Whether the error comes from writing to a pipe whose reader has gone.
-fn is_broken_pipe(error: &anyhow::Error) -> bool {
-    error.chain().any(|cause| {
-        cause
-            .downcast_ref::<std::io::Error>()
-            .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
-    })
+    aim_tracker::exit::exit_code(result)
 }

@@ -13,6 +13,7 @@
 pub mod config;
 pub mod doa;
 pub mod dynamics;
+pub mod exit;
 pub mod filter;
 pub mod intake;
 pub mod iqr;
