@@ -77,15 +77,23 @@ impl ArrayRecording {
     pub fn tdm_words(&self, full_scale_pa: f64, tdm_slots: usize) -> Vec<i32> {
         let len = self.channels.first().map_or(0, Vec::len);
         let mut words = vec![0i32; len * tdm_slots];
-        let scale = 8_388_607.0 / full_scale_pa;
         for (i, ch) in self.channels.iter().enumerate().take(tdm_slots) {
             for (k, &x) in ch.iter().enumerate() {
-                let s = (x as f64 * scale).round().clamp(-8_388_608.0, 8_388_607.0) as i32;
-                words[k * tdm_slots + i] = s << 8;
+                words[k * tdm_slots + i] = tdm_word(x, full_scale_pa);
             }
         }
         words
     }
+}
+
+/// The TDM word a 24-bit microphone sends for a sound pressure `pa` (Pa): `full_scale_pa`
+/// maps to 8 388 607 counts, rounded, saturated at the 24-bit range, NaN as silence, and
+/// left-justified in the 32-bit slot (`counts << 8`). Used for simulated arrays and for float
+/// recordings given to `host-sim analyze`, so both feed the pipeline the same words.
+pub fn tdm_word(pa: f32, full_scale_pa: f64) -> i32 {
+    let counts = (f64::from(pa) * (8_388_607.0 / full_scale_pa)).round();
+    let counts = if counts.is_nan() { 0.0 } else { counts.clamp(-8_388_608.0, 8_388_607.0) };
+    (counts as i32) << 8
 }
 
 /// The result of a simulation.

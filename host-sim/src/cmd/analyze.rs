@@ -26,8 +26,6 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use aim_dsp::{Config, Geometry, Output, Pipeline};
 
-/// Default digital full scale for float recordings, Pa (120 dB SPL, a −26 dBFS MEMS microphone).
-pub const FULL_SCALE_PA: f64 = 20.0;
 /// TDM slots per frame, as on the reference board.
 const TDM_SLOTS: usize = 8;
 /// Frames handed to the pipeline per call (a DMA half-buffer's worth).
@@ -46,7 +44,7 @@ pub struct Args {
     #[arg(long)]
     jsonl: bool,
     /// Sound pressure that maps to digital full scale for float recordings, Pa.
-    #[arg(long, default_value_t = FULL_SCALE_PA)]
+    #[arg(long, default_value_t = host_sim::DEFAULT_FULL_SCALE_PA)]
     full_scale_pa: f64,
 }
 
@@ -178,8 +176,8 @@ fn progress_bar(frames: u64) -> anyhow::Result<ProgressBar> {
 
 /// WAV sample → TDM word (24-bit sample left-justified in i32).
 struct Converter {
-    /// Float: multiply pascals by this to get 24-bit counts.
-    counts_per_pa: f64,
+    /// Float: pascals at digital full scale.
+    full_scale_pa: f64,
     /// Integer PCM: bits per sample.
     bits: u16,
 }
@@ -191,13 +189,11 @@ impl Converter {
             hound::SampleFormat::Int if (8..=32).contains(&spec.bits_per_sample) => {}
             _ => bail!("{:?} with {} bits per sample", spec.sample_format, spec.bits_per_sample),
         }
-        Ok(Self { counts_per_pa: 8_388_608.0 / full_scale_pa, bits: spec.bits_per_sample })
+        Ok(Self { full_scale_pa, bits: spec.bits_per_sample })
     }
 
     fn float(&self, pa: f32) -> i32 {
-        let counts = (f64::from(pa) * self.counts_per_pa).round();
-        let counts = if counts.is_nan() { 0.0 } else { counts.clamp(-8_388_608.0, 8_388_607.0) };
-        (counts as i32) << 8
+        host_sim::tdm_word(pa, self.full_scale_pa)
     }
 
     fn int(&self, s: i32) -> i32 {
