@@ -152,7 +152,11 @@ pub struct Span {
 }
 
 /// Flies `plan` with `profile` over `span`. The drone starts hovering at the plan's position at
-/// `span.t0_s` with heading `yaw_rad`, which it holds. `seed` seeds the rotor-speed jitter.
+/// `span.t0_s` with heading `yaw_rad`, which it holds, unless the plan flies nose-first
+/// ([`FlightPlan::heading_at`]): then it follows the plan's heading, with the reference yaw
+/// rate and acceleration fed forward to the rate loop, so a turn's torque comes from the
+/// mixer's odd/even rotor-speed split (reaction torque `k_h f²`). `seed` seeds the rotor-speed
+/// jitter.
 pub fn fly(
     profile: &DroneProfile,
     plan: &FlightPlan,
@@ -194,7 +198,8 @@ pub fn fly(
     let start = plan.at(t0_s).position;
     let mut p = start;
     let mut v = Vector3::zeros();
-    let mut q = UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad);
+    let yaw0 = plan.heading_at(t0_s).map_or(yaw_rad, |h| h.yaw_rad);
+    let mut q = UnitQuaternion::from_euler_angles(0.0, 0.0, yaw0);
     let mut w = Vector3::zeros();
     let hover: Vec<f64> =
         rotors.iter().map(|r| (m * GRAVITY_MPS2 / (n as f64 * kv * r.efficiency)).sqrt()).collect();
@@ -249,7 +254,9 @@ pub fn fly(
             f_des.y *= s;
         }
         let z_des = f_des.normalize();
-        let x_c = Vector3::new(yaw_rad.cos(), yaw_rad.sin(), 0.0);
+        let heading = plan.heading_at(t);
+        let yaw_c = heading.map_or(yaw_rad, |h| h.yaw_rad);
+        let x_c = Vector3::new(yaw_c.cos(), yaw_c.sin(), 0.0);
         let y_des = z_des.cross(&x_c).normalize();
         let x_des = y_des.cross(&z_des);
         let r_des = Matrix3::from_columns(&[x_des, y_des, z_des]);
@@ -258,12 +265,24 @@ pub fn fly(
         // Attitude error on SO(3) (Lee, Leok, McClamroch 2010).
         let e_m = r_des.transpose() * rot - rot.transpose() * r_des;
         let e_r = Vector3::new(e_m[(2, 1)], e_m[(0, 2)], e_m[(1, 0)]) * 0.5;
-        let w_des =
+        let mut w_des =
             -Vector3::new(e_r.x * gains.attitude, e_r.y * gains.attitude, e_r.z * gains.yaw);
+        // Feed-forward of a turn: the reference yaw rate and acceleration (about world z) in
+        // the body frame. A fixed heading has none (and its arithmetic stays as it was).
+        let turn = heading.map(|h| {
+            let rt = rot.transpose();
+            (rt * Vector3::new(0.0, 0.0, h.rate_rad_s), rt * Vector3::new(0.0, 0.0, h.accel_rad_s2))
+        });
+        if let Some((rate_ff, _)) = turn {
+            w_des += rate_ff;
+        }
         let w_err = w_des - w;
         rate_integral += w_err * dt_s;
         rate_integral = rate_integral.map(|x| x.clamp(-2.0, 2.0));
-        let alpha_cmd = w_err * gains.rate + rate_integral * gains.rate_integral;
+        let mut alpha_cmd = w_err * gains.rate + rate_integral * gains.rate_integral;
+        if let Some((_, accel_ff)) = turn {
+            alpha_cmd += accel_ff;
+        }
         let tau_cmd = inertia * alpha_cmd + w.cross(&(inertia * w));
         let u = nalgebra::DVector::from_vec(vec![thrust_cmd, tau_cmd.x, tau_cmd.y, tau_cmd.z]);
         let thrusts = &mixer * u;
@@ -307,17 +326,35 @@ pub fn fly(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::path::{square, FlightPlan};
+    use crate::path::{square, FlightPlan, Heading};
+    use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
     fn plan_square() -> FlightPlan {
-        FlightPlan::new(&square([0.0, 0.0], 5.0, 2.0, false, 1), 1.5, 1.0, 2.0, 0.5, 2.0).unwrap()
+        FlightPlan::new(
+            &square([0.0, 0.0], 5.0, 2.0, false, 1),
+            1.5,
+            1.0,
+            2.0,
+            0.5,
+            2.0,
+            Heading::Fixed,
+        )
+        .unwrap()
     }
 
     #[test]
     fn hover_balances_weight_at_164_hz() {
         let profile = DroneProfile { rotor_jitter: 0.0, ..DroneProfile::dji_mini_2() };
-        let plan =
-            FlightPlan::new(&[Vector3::new(0.0, 0.0, 2.0)], 1.0, 1.0, 5.0, 0.0, 0.0).unwrap();
+        let plan = FlightPlan::new(
+            &[Vector3::new(0.0, 0.0, 2.0)],
+            1.0,
+            1.0,
+            5.0,
+            0.0,
+            0.0,
+            Heading::Fixed,
+        )
+        .unwrap();
         let log = fly(
             &profile,
             &plan,
@@ -364,5 +401,83 @@ mod tests {
             "rear/front {} vs {expected}",
             rear / front
         );
+    }
+
+    /// Nose-first flight: the drone's heading follows the plan's, and during a turn the rotor
+    /// speeds obey the yaw torque law I_z ψ̈ = k_h (Σ_even f² − Σ_odd f²) (odd rotors spin
+    /// counter-clockwise, so their reaction torque turns the body clockwise).
+    #[test]
+    fn nose_first_turns_follow_the_plan_through_the_odd_even_split() {
+        let profile = DroneProfile { rotor_jitter: 0.0, ..DroneProfile::dji_mini_2() };
+        let heading = Heading::AlongTrack {
+            max_rate_rad_s: 90f64.to_radians(),
+            max_accel_rad_s2: 180f64.to_radians(),
+        };
+        // Counter-clockwise square then a clockwise dog-leg: turns of +90° and −90°.
+        let mut w = square([0.0, 0.0], 3.0, 2.0, false, 1);
+        w.truncate(3);
+        w.push(Vector3::new(6.0, 3.0, 2.0));
+        let plan = FlightPlan::new(&w, 1.0, 1.0, 1.0, 0.5, 1.0, heading).unwrap();
+        let turns = plan.turns();
+        assert_eq!(turns.len(), 2);
+        assert!((turns[0].2 - FRAC_PI_2).abs() < 1e-12 && (turns[1].2 + FRAC_PI_2).abs() < 1e-12);
+        let dt = 1e-3;
+        let log = fly(
+            &profile,
+            &plan,
+            0.0,
+            &ControlGains::default(),
+            Span { t0_s: 0.0, t1_s: plan.duration_s(), dt_s: dt },
+            1,
+        );
+        let yaw = |k: usize| log.samples[k].yaw_rad();
+        let wrap = |a: f64| (a + PI).rem_euclid(TAU) - PI;
+        // Heading against the commanded one (the oracle), all along and settled after turns.
+        let mut worst: f64 = 0.0;
+        for (k, s) in log.samples.iter().enumerate() {
+            let cmd = plan.heading_at(s.t_s).unwrap().yaw_rad;
+            worst = worst.max(wrap(yaw(k) - cmd).abs());
+        }
+        assert!(worst < 3f64.to_radians(), "worst heading error {}°", worst.to_degrees());
+        let kv = profile.thrust_coefficient();
+        let kh = kv * profile.torque_to_thrust_m;
+        let iz = profile.inertia_kgm2[2];
+        for &(t0, t1, delta) in &turns {
+            let k1 = ((t1 + 0.3) / dt) as usize;
+            let settled = plan.heading_at(t1 + 0.3).unwrap().yaw_rad;
+            assert!(wrap(yaw(k1) - settled).abs() < 1f64.to_radians(), "after turn at {t0}");
+            // In the yaw-acceleration quarter the even rotors must outrun the odd ones for a
+            // left turn (positive ψ̈) and the reverse for a right turn; in the braking quarter
+            // the reverse. The size follows the torque law against the truth's own ψ̈.
+            let quarter = (t1 - t0) / 4.0;
+            for (centre, sign) in [(t0 + quarter / 2.0, 1.0), (t1 - quarter / 2.0, -1.0)] {
+                let k = (centre / dt) as usize;
+                let h = 20;
+                let psi_dd = wrap(yaw(k + h) - 2.0 * yaw(k) + yaw(k - h)) / (h as f64 * dt).powi(2);
+                let f = &log.samples[k].rotor_hz;
+                let even_minus_odd: f64 = f
+                    .iter()
+                    .enumerate()
+                    .map(|(i, x)| if i % 2 == 1 { x * x } else { -x * x })
+                    .sum();
+                let torque_law = kh * even_minus_odd / iz;
+                assert!(
+                    torque_law.signum() == sign * delta.signum(),
+                    "turn {delta:.2} at {centre:.2}: even−odd f² = {even_minus_odd:.1} Hz²"
+                );
+                assert!(
+                    (torque_law - psi_dd).abs() < 0.1 * psi_dd.abs(),
+                    "turn at {centre:.2}: torque law {torque_law:.3} vs ψ̈ {psi_dd:.3} rad/s²"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn fixed_heading_plan_has_no_heading_reference() {
+        // The fixed plan leaves the heading to the controller: no reference, no turns.
+        let plan = plan_square();
+        assert!(plan.heading_at(3.0).is_none());
+        assert!(plan.turns().is_empty());
     }
 }

@@ -21,7 +21,10 @@
 //!             square: side_m, start = [x, y], height_m, clockwise [false], loops [1]
 //!             waypoints: points = [[x, y, z], ...];  hover: position = [x, y, z]
 //!             speed_mps [1.5], max_accel_mps2 [1.0], hover_start_s [3], corner_pause_s [0.5],
-//!             hover_end_s [3], yaw_deg [0]
+//!             hover_end_s [3], heading = "fixed" | "along-track" ["fixed"]
+//!             fixed: yaw_deg [0], the heading held throughout
+//!             along-track: nose first, turning at each corner (`path` module docs) with
+//!             yaw_rate_dps [90] (peak yaw rate) and yaw_accel_dps2 [180] (peak yaw acceleration)
 //! [room]      size_m = [Lx, Ly, Lz], absorption = α or [x0, x1, y0, y1, floor, ceiling] [0.2],
 //!             reflection_order [1]          (no [room]: free field)
 //! [[obstacle]] name, min = [x, y, z], max = [x, y, z], loss_db [20]
@@ -43,7 +46,15 @@ use crate::air::Air;
 use crate::array::{preset_positions, ArrayConfig, Clock, GEOMETRY_PRESETS};
 use crate::noise::{DiffuseNoise, NoiseSource};
 use crate::obstacle::Obstacle;
-use crate::path::{square, FlightPlan};
+use crate::path::{square, FlightPlan, Heading};
+
+/// Default peak yaw rate of nose-first flight, °/s. DJI lists the Mini 2's maximum angular
+/// velocity as 130 °/s (Sport mode); its Normal mode turns at about 60 °/s; 90 °/s is between.
+pub const DEFAULT_YAW_RATE_DPS: f64 = 90.0;
+/// Default peak yaw acceleration of nose-first flight, °/s². Not published; chosen so a 90°
+/// turn of the simulated DJI Mini 2 (I_z 7.5e-4 kg·m², k_h/k_v 12 mm) needs about ±8 % of hover
+/// thrust between odd and even rotors (±4 % rotor speed), well inside the motors' headroom.
+pub const DEFAULT_YAW_ACCEL_DPS2: f64 = 180.0;
 use crate::profile::DroneProfile;
 use crate::room::Room;
 
@@ -90,8 +101,10 @@ struct FilePath {
     corner_pause_s: f64,
     #[serde(default = "d_hover")]
     hover_end_s: f64,
-    #[serde(default)]
-    yaw_deg: f64,
+    yaw_deg: Option<f64>,
+    heading: Option<String>,
+    yaw_rate_dps: Option<f64>,
+    yaw_accel_dps2: Option<f64>,
 }
 fn d_one() -> u32 {
     1
@@ -306,7 +319,8 @@ pub struct Scenario {
     pub drone: DroneProfile,
     /// Its flight plan.
     pub plan: FlightPlan,
-    /// Heading it holds, rad.
+    /// Heading it holds, rad (with `heading = "along-track"`, the plan's initial heading; the
+    /// plan then steers it).
     pub yaw_rad: f64,
     /// The room (None: free field).
     pub room: Option<Room>,
@@ -462,6 +476,37 @@ impl Scenario {
                 p.speed_mps
             ));
         }
+        let heading = match p.heading.as_deref().unwrap_or("fixed") {
+            "fixed" => {
+                if p.yaw_rate_dps.is_some() || p.yaw_accel_dps2.is_some() {
+                    return Err(
+                        "path.yaw_rate_dps and path.yaw_accel_dps2 apply to heading = \"along-track\""
+                            .into(),
+                    );
+                }
+                Heading::Fixed
+            }
+            "along-track" => {
+                if p.yaw_deg.is_some() {
+                    return Err("path.yaw_deg applies to heading = \"fixed\" (along-track faces \
+                                each leg)"
+                        .into());
+                }
+                let rate = p.yaw_rate_dps.unwrap_or(DEFAULT_YAW_RATE_DPS);
+                let accel = p.yaw_accel_dps2.unwrap_or(DEFAULT_YAW_ACCEL_DPS2);
+                if !(rate > 0.0 && rate <= 720.0) {
+                    return Err(format!("path.yaw_rate_dps {rate} must be in (0, 720]"));
+                }
+                if !(accel > 0.0 && accel <= 7200.0) {
+                    return Err(format!("path.yaw_accel_dps2 {accel} must be in (0, 7200]"));
+                }
+                Heading::AlongTrack {
+                    max_rate_rad_s: rate.to_radians(),
+                    max_accel_rad_s2: accel.to_radians(),
+                }
+            }
+            h => return Err(format!("path.heading `{h}` is unknown (fixed, along-track)")),
+        };
         let plan = FlightPlan::new(
             &waypoints,
             p.speed_mps,
@@ -469,8 +514,11 @@ impl Scenario {
             p.hover_start_s,
             p.corner_pause_s,
             p.hover_end_s,
+            heading,
         )
         .map_err(|e| format!("path: {e}"))?;
+        let yaw_rad =
+            plan.heading_at(0.0).map_or(p.yaw_deg.unwrap_or(0.0).to_radians(), |h| h.yaw_rad);
         let duration_s = f.duration_s.unwrap_or(plan.duration_s());
         if !(duration_s > 0.0 && duration_s <= 3600.0) {
             return Err(format!("duration_s {duration_s} must be in (0, 3600]"));
@@ -602,7 +650,7 @@ impl Scenario {
             air,
             drone,
             plan,
-            yaw_rad: p.yaw_deg.to_radians(),
+            yaw_rad,
             room,
             obstacles,
             noise,
@@ -610,5 +658,70 @@ impl Scenario {
             arrays,
             render,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const BASE: &str = r#"
+[drone]
+preset = "dji-mini-2"
+[path]
+kind = "square"
+side_m = 4.0
+start = [0.0, 0.0]
+height_m = 2.0
+[[array]]
+id = 1
+position = [2.0, -1.0, 0.05]
+"#;
+
+    fn with_path(extra: &str) -> anyhow::Result<Scenario> {
+        let text = BASE.replace("height_m = 2.0", &format!("height_m = 2.0\n{extra}"));
+        Scenario::from_toml(&text, "t")
+    }
+
+    #[test]
+    fn heading_defaults_to_fixed_and_along_track_reads_its_limits() {
+        let fixed = with_path("yaw_deg = 30.0").unwrap();
+        assert_eq!(fixed.plan.heading(), Heading::Fixed);
+        assert!((fixed.yaw_rad - 30f64.to_radians()).abs() < 1e-12);
+        let nose = with_path("heading = \"along-track\"\nyaw_rate_dps = 60.0").unwrap();
+        assert_eq!(
+            nose.plan.heading(),
+            Heading::AlongTrack {
+                max_rate_rad_s: 60f64.to_radians(),
+                max_accel_rad_s2: DEFAULT_YAW_ACCEL_DPS2.to_radians(),
+            }
+        );
+        // Three corners, three turns; the drone starts facing its first leg (+x).
+        assert_eq!(nose.plan.turns().len(), 3);
+        assert_eq!(nose.yaw_rad, 0.0);
+    }
+
+    #[test]
+    fn heading_keys_that_do_not_fit_are_named() {
+        let e = with_path("heading = \"sideways\"").unwrap_err().to_string();
+        assert!(e.contains("path.heading `sideways` is unknown"), "{e}");
+        let e = with_path("heading = \"along-track\"\nyaw_deg = 10.0").unwrap_err().to_string();
+        assert!(e.contains("path.yaw_deg applies to heading = \"fixed\""), "{e}");
+        let e = with_path("yaw_rate_dps = 90.0").unwrap_err().to_string();
+        assert!(e.contains("apply to heading = \"along-track\""), "{e}");
+        let e =
+            with_path("heading = \"along-track\"\nyaw_accel_dps2 = -1.0").unwrap_err().to_string();
+        assert!(e.contains("path.yaw_accel_dps2 -1 must be in"), "{e}");
+    }
+
+    #[test]
+    fn bundled_nose_first_scenario_turns_at_three_corners() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        let s = Scenario::load(&dir.join("square10-nlos-yaw.toml")).unwrap();
+        let turns = s.plan.turns();
+        assert_eq!(turns.len(), 3);
+        assert!(turns.iter().all(|t| (t.2 - std::f64::consts::FRAC_PI_2).abs() < 1e-12));
+        assert!(s.duration_s >= turns[2].1);
+        assert_eq!(s.obstacles.len(), 1);
     }
 }
