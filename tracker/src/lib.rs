@@ -26,3 +26,4 @@ pub mod site;
 #[cfg(test)]
 mod testutil;
 pub mod tracker;
+pub mod yaw;
