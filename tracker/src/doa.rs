@@ -74,6 +74,10 @@ pub struct DoaState {
     pub inlier_fraction: f64,
     /// Number of inliers.
     pub inliers: usize,
+    /// Noise of one bearing per component (azimuth·sin zenith, zenith) around the fit, rad.
+    pub noise_rad: f64,
+    /// √Σ(t − t̄)² of the inliers' times, s: a slope's standard error is noise / this.
+    pub time_spread_s: f64,
     /// Line-of-sight decision.
     pub los: bool,
     /// DoA-trend decision: the drone moves.
@@ -133,9 +137,20 @@ impl DoaWindow {
     /// The window's state evaluated at time `t` (normally the newest bearing's time), or
     /// `None` with too few estimates.
     pub fn state(&self, t: f64) -> Option<DoaState> {
+        self.state_over(t, self.config.window_s, 0)
+    }
+
+    /// The state of the bearings of the last `span_s` seconds up to `t` only, reaching back
+    /// further (within the window) until it holds `min_count` bearings: a shorter span
+    /// follows a start or a stop sooner, at the price of a larger standard error of the trend
+    /// (the `moving` test accounts for it); `min_count` keeps enough bearings for a trend.
+    pub fn state_over(&self, t: f64, span_s: f64, min_count: usize) -> Option<DoaState> {
         let c = &self.config;
-        let pts: Vec<&Bearing> =
+        let in_window: Vec<&Bearing> =
             self.bearings.iter().filter(|b| b.t >= t - c.window_s && b.t <= t + 1e-9).collect();
+        let recent = in_window.iter().filter(|b| b.t >= t - span_s).count();
+        let skip = in_window.len() - recent.max(min_count).min(in_window.len());
+        let pts = &in_window[skip..];
         if pts.len() < c.min_points {
             return None;
         }
@@ -206,6 +221,8 @@ impl DoaWindow {
             quality,
             inlier_fraction,
             inliers: keep.len(),
+            noise_rad: sigma_component,
+            time_spread_s: stt.sqrt(),
             los,
             moving,
         })

@@ -7,6 +7,7 @@
 
 use std::collections::VecDeque;
 
+use crate::doa::DoaState;
 use crate::observation::BpfPeak;
 use crate::profile::Profile;
 
@@ -106,34 +107,299 @@ pub fn bpf_groups(
     groups
 }
 
-/// Table I with a short majority vote, so one noisy block does not flip the class.
+/// Tunables of the [`MotionClassifier`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct MotionConfig {
+    /// A BPF frame whose thrust excess |ρ − 1| exceeds this many single-frame hover spreads
+    /// starts a motion (the tilt of an acceleration, or a climb or descent).
+    pub start_sigmas: f64,
+    /// A BPF frame whose |ρ − 1| stays within this many spreads, with one BPF group, is quiet.
+    pub quiet_sigmas: f64,
+    /// Consecutive quiet BPF frames that end a motion when the short DoA span is positively
+    /// still (its rate plus `doa_sigmas` standard errors below `doa_still_rate`).
+    pub stop_quiet_frames: usize,
+    /// Consecutive quiet BPF frames that end a motion when the DoA cannot tell (noisy or
+    /// reflected bearings), as long as it shows no trend.
+    pub stop_quiet_frames_blind: usize,
+    /// A short DoA span whose rate is surely below this is still, rad/s: slower than cruise
+    /// seen from across the room (1.5 m/s at 20 m is 4.3°/s), faster than the noise floor.
+    pub doa_still_rate: f64,
+    /// Single-group frames at rest needed before the thrust cues count (they set the rest
+    /// level of Σ BPF² the excess is measured from).
+    pub min_rest_frames: usize,
+    /// Single-frame relative spread of Σ BPF² assumed before hover frames have measured it.
+    pub prior_sigma: f64,
+    /// Weight of the prior, in frames.
+    pub prior_frames: f64,
+    /// Memory of the running rest level and spread estimates, frames.
+    pub rest_memory_frames: f64,
+    /// Smallest single-frame spread used (the DSP's frequency resolution bounds it), relative.
+    pub min_sigma: f64,
+    /// The short DoA trend moves when its rate exceeds this many standard errors, computed
+    /// with the pooled bearing noise (a few bearings cannot estimate their own noise).
+    pub doa_sigmas: f64,
+    /// ... and this rate, rad/s.
+    pub doa_min_rate: f64,
+    /// Memory of the pooled bearing noise, decisions.
+    pub doa_noise_memory: f64,
+    /// Full DoA windows with fewer inliers do not update the pooled noise, and the DoA
+    /// decides nothing before this many windows have been pooled.
+    pub doa_min_pooled_inliers: usize,
+    /// BPF frames older than this (frame centre to decision time) are stale, s; two BPF
+    /// groups in a fresh frame count as a split.
+    pub stale_s: f64,
+}
+
+impl Default for MotionConfig {
+    fn default() -> Self {
+        Self {
+            start_sigmas: 3.5,
+            quiet_sigmas: 3.0,
+            stop_quiet_frames: 1,
+            stop_quiet_frames_blind: 2,
+            doa_still_rate: 4.0f64.to_radians(),
+            min_rest_frames: 3,
+            prior_sigma: 0.002,
+            prior_frames: 3.0,
+            rest_memory_frames: 40.0,
+            min_sigma: 5e-4,
+            doa_sigmas: 3.0,
+            doa_min_rate: 1.0f64.to_radians(),
+            doa_noise_memory: 50.0,
+            doa_min_pooled_inliers: 5,
+            stale_s: 0.6,
+        }
+    }
+}
+
+/// What one BPF frame says about the thrust.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThrustFrame {
+    /// Centre of the frame's span, s.
+    pub t: f64,
+    /// Σ BPF² relative to a fixed reference Σ_ref (normally the hover calibration's):
+    /// Σ / Σ_ref − 1. The classifier measures its own rest level on this scale.
+    pub excess: f64,
+    /// Two or more BPF groups heard (the rotor pairs differ).
+    pub split: bool,
+}
+
+/// The DoA windows at a decision instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DoaCues {
+    /// The full window (tells a climb, zenith alone, from a sweep).
+    pub long: DoaState,
+    /// The last few bearings only (follows starts and stops).
+    pub short: DoaState,
+}
+
+/// Still or moving: the state the classifier is in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    Still,
+    Moving,
+}
+
+/// Causal motion classifier: a still/moving state machine on acceleration phases, with the
+/// DoA trend as confirmation, then Table I for the class.
+///
+/// A drone changes speed only by tilting (horizontal) or by changing thrust (vertical), and
+/// either raises or lowers Σ BPF² at once: the first BPF frame whose thrust excess is beyond
+/// `start_sigmas` single-frame hover spreads starts a motion, long before a bearing trend is
+/// significant. A motion ends with its braking phase: once the newest `stop_quiet_frames`
+/// BPF frames are quiet (hover thrust, one group) and the short-span DoA trend is not
+/// significant, the drone is still. Cruise keeps the state moving through its wake excess,
+/// its split or its DoA trend. Without calibrated BPF frames the DoA trend alone decides.
+///
+/// The rest level of Σ BPF² is the running mean of the single-group frames while still (so a
+/// drift of the tracker's hover calibration does not bias it); the single-frame spread comes
+/// from successive differences of those frames.
 #[derive(Clone, Debug)]
 pub struct MotionClassifier {
-    window_s: f64,
-    votes: VecDeque<(f64, MotionClass)>,
+    config: MotionConfig,
+    phase: Phase,
+    /// Recent frames, oldest first.
+    frames: VecDeque<ThrustFrame>,
+    /// Running mean and variance of a still frame's excess, and their weights in frames.
+    rest_level: f64,
+    rest_frames: usize,
+    level_weight: f64,
+    sigma_sq: f64,
+    sigma_weight: f64,
+    /// Time of the newest frame already judged as a start cue.
+    judged_t: f64,
+    /// Pooled variance of one bearing component, rad², and its weight in decisions.
+    doa_noise_sq: f64,
+    doa_noise_weight: f64,
 }
 
 impl MotionClassifier {
-    /// A classifier voting over `window_s` seconds.
-    pub fn new(window_s: f64) -> Self {
-        Self { window_s, votes: VecDeque::new() }
+    /// A classifier for a drone at rest.
+    pub fn new(config: MotionConfig) -> Self {
+        let sigma_sq = config.prior_sigma * config.prior_sigma;
+        let sigma_weight = config.prior_frames;
+        Self {
+            config,
+            phase: Phase::Still,
+            frames: VecDeque::new(),
+            rest_level: 0.0,
+            rest_frames: 0,
+            level_weight: 0.0,
+            sigma_sq,
+            sigma_weight,
+            judged_t: f64::NEG_INFINITY,
+            doa_noise_sq: 0.0,
+            doa_noise_weight: 0.0,
+        }
     }
 
-    /// Adds the raw Table-I class at time `t` and returns the majority class of the window
-    /// (ties go to the newest vote).
-    pub fn update(&mut self, t: f64, raw: MotionClass) -> MotionClass {
-        self.votes.push_back((t, raw));
-        while self.votes.front().is_some_and(|(t0, _)| *t0 < t - self.window_s) {
-            self.votes.pop_front();
+    /// The tunables.
+    pub fn config(&self) -> &MotionConfig {
+        &self.config
+    }
+
+    /// Single-frame relative spread of Σ BPF² at rest now.
+    pub fn frame_sigma(&self) -> f64 {
+        self.sigma_sq.sqrt().max(self.config.min_sigma)
+    }
+
+    /// Centre time of the newest frame added, s.
+    pub fn latest_frame_t(&self) -> Option<f64> {
+        self.frames.back().map(|f| f.t)
+    }
+
+    /// True while the drone is judged to be moving.
+    pub fn is_moving(&self) -> bool {
+        self.phase == Phase::Moving
+    }
+
+    /// True once enough frames at rest have set the rest level.
+    pub fn is_calibrated(&self) -> bool {
+        self.rest_frames >= self.config.min_rest_frames
+    }
+
+    /// Excess of Σ BPF² of a frame over the rest level, relative.
+    fn excess_over_rest(&self, f: &ThrustFrame) -> f64 {
+        f.excess - self.rest_level
+    }
+
+    fn is_quiet(&self, f: &ThrustFrame) -> bool {
+        !f.split && self.excess_over_rest(f).abs() <= self.config.quiet_sigmas * self.frame_sigma()
+    }
+
+    /// Adds a BPF frame (in time order; older or non-finite ones are ignored).
+    pub fn add_thrust(&mut self, frame: ThrustFrame) {
+        if !(frame.t.is_finite() && frame.excess.is_finite()) {
+            return;
         }
-        let classes =
-            [MotionClass::Hover, MotionClass::Yaw, MotionClass::Horizontal, MotionClass::Vertical];
-        let count = |c: MotionClass| self.votes.iter().filter(|(_, v)| *v == c).count();
-        let best = classes.iter().map(|&c| count(c)).max().unwrap_or(0);
-        if count(raw) == best {
-            raw
-        } else {
-            classes.into_iter().find(|&c| count(c) == best).unwrap_or(raw)
+        if self.frames.back().is_some_and(|p| frame.t <= p.t) {
+            return;
+        }
+        let limit = self.config.start_sigmas * self.frame_sigma();
+        let m = self.config.rest_memory_frames;
+        if self.phase == Phase::Still && !frame.split {
+            // At rest: the frame joins the rest level unless it jumps beyond the start
+            // threshold (the first frame of a start, judged at the next update).
+            let jump = self.is_calibrated() && self.excess_over_rest(&frame).abs() > limit;
+            if !jump {
+                self.rest_frames += 1;
+                self.level_weight = (self.level_weight + 1.0).min(m);
+                self.rest_level += (frame.excess - self.rest_level) / self.level_weight;
+                // Successive rest frames differ by √2 spreads, whatever the level.
+                if let Some(prev) = self.frames.back().filter(|p| !p.split) {
+                    let d = frame.excess - prev.excess;
+                    if d.abs() <= limit * std::f64::consts::SQRT_2 {
+                        self.sigma_weight = (self.sigma_weight + 1.0).min(m);
+                        self.sigma_sq += (0.5 * d * d - self.sigma_sq) / self.sigma_weight;
+                    }
+                }
+            }
+        }
+        self.frames.push_back(frame);
+        let keep = self.config.stop_quiet_frames.max(self.config.stop_quiet_frames_blind);
+        while self.frames.len() > keep.max(1) + 2 {
+            self.frames.pop_front();
+        }
+    }
+
+    /// Whether the short DoA span shows a trend, judged with the pooled bearing noise (which
+    /// the full window updates).
+    fn short_trend(&mut self, d: &DoaCues) -> (bool, bool) {
+        let c = &self.config;
+        let (l, s) = (&d.long, &d.short);
+        if l.inliers >= c.doa_min_pooled_inliers && l.noise_rad.is_finite() {
+            self.doa_noise_weight = (self.doa_noise_weight + 1.0).min(c.doa_noise_memory);
+            self.doa_noise_sq += (l.noise_rad.powi(2) - self.doa_noise_sq) / self.doa_noise_weight;
+        }
+        let noise = self.doa_noise_sq.sqrt().max(s.noise_rad.min(l.noise_rad));
+        let pooled = self.doa_noise_weight >= c.doa_min_pooled_inliers as f64;
+        if !pooled || s.inliers < 3 || s.time_spread_s <= 0.0 || !noise.is_finite() {
+            return (false, false);
+        }
+        let se = noise / s.time_spread_s;
+        let moving = s.angular_rate > c.doa_min_rate && s.angular_rate > c.doa_sigmas * se;
+        let still = s.angular_rate + c.doa_sigmas * se < c.doa_still_rate;
+        (moving, still)
+    }
+
+    /// The class at time `t` from the frames added so far and the DoA cues (`None`: no
+    /// current DoA).
+    pub fn update(&mut self, t: f64, doa: Option<DoaCues>) -> MotionClass {
+        let (doa_moving, doa_still) = doa.map_or((false, false), |d| self.short_trend(&d));
+        let long_moving = doa.is_some_and(|d| d.long.moving);
+        let c = &self.config;
+        let fresh: Vec<ThrustFrame> =
+            self.frames.iter().copied().filter(|f| f.t <= t && t - f.t <= c.stale_s).collect();
+        let calibrated = self.is_calibrated() && !fresh.is_empty();
+        // A significant zenith trend with the azimuth sweep well below it.
+        let zenith_only = doa.is_some_and(|d| {
+            let l = d.long;
+            l.moving
+                && l.zenith_rate.abs() > c.doa_sigmas * l.angular_rate_sigma
+                && (l.zenith_rad.sin() * l.azimuth_rate).abs() < 0.3 * l.zenith_rate.abs()
+        });
+        let sigma = self.frame_sigma();
+        match self.phase {
+            Phase::Still => {
+                let newest = fresh.last().copied().filter(|f| f.t > self.judged_t);
+                if let Some(f) = newest {
+                    self.judged_t = f.t;
+                }
+                // A thrust excess beyond the start threshold, or a split with more than
+                // quiet thrust (a tilt), or a trend in both DoA spans.
+                let thrust_start = newest.is_some_and(|f| {
+                    let e = self.excess_over_rest(&f);
+                    calibrated
+                        && (e.abs() > c.start_sigmas * sigma
+                            || (f.split && e > c.quiet_sigmas * sigma))
+                });
+                if thrust_start || (doa_moving && long_moving) {
+                    self.phase = Phase::Moving;
+                }
+            }
+            Phase::Moving => {
+                let quiet = |n: usize| {
+                    let n = n.max(1);
+                    fresh.len() >= n && fresh[fresh.len() - n..].iter().all(|f| self.is_quiet(f))
+                };
+                let stop = if calibrated {
+                    (doa_still && quiet(c.stop_quiet_frames))
+                        || (!doa_moving && quiet(c.stop_quiet_frames_blind))
+                } else {
+                    !doa_moving
+                };
+                if stop {
+                    self.phase = Phase::Still;
+                }
+            }
+        }
+        let split = fresh.iter().any(|f| f.split);
+        match self.phase {
+            Phase::Still if split => MotionClass::Yaw,
+            Phase::Still => MotionClass::Hover,
+            // A DoA moving in zenith alone, with one rotor speed, is a climb or descent.
+            Phase::Moving if doa_moving && zenith_only && !split => MotionClass::Vertical,
+            Phase::Moving => MotionClass::Horizontal,
         }
     }
 }
@@ -172,14 +438,178 @@ mod tests {
         assert!((g[0].hz - 328.2).abs() < 1e-9, "{g:?}");
     }
 
-    #[test]
-    fn majority_vote_suppresses_single_flips() {
-        let mut c = MotionClassifier::new(0.5);
-        let mut out = Vec::new();
-        for k in 0..20 {
-            let raw = if k == 10 { MotionClass::Vertical } else { MotionClass::Hover };
-            out.push(c.update(k as f64 * 0.05, raw));
+    use crate::doa::DoaWindow;
+    use crate::observation::Bearing;
+    use crate::profile::G;
+    use crate::testutil::Rng;
+
+    /// A synthetic leg seen by an array at the origin: rest, accelerate at `ACCEL` to
+    /// `CRUISE` along +x at 2 m height and 5 m south-north offset, cruise, brake, rest.
+    const ACCEL: f64 = 1.0;
+    const CRUISE: f64 = 1.5;
+    const T_START: f64 = 4.0;
+    const T_BRAKE: f64 = 8.0;
+
+    /// Truth acceleration along the leg, m/s².
+    fn accel(t: f64) -> f64 {
+        let ramp = CRUISE / ACCEL;
+        if (T_START..T_START + ramp).contains(&t) {
+            ACCEL
+        } else if (T_BRAKE..T_BRAKE + ramp).contains(&t) {
+            -ACCEL
+        } else {
+            0.0
         }
-        assert!(out.iter().all(|&m| m == MotionClass::Hover));
+    }
+
+    /// Truth speed, m/s (closed form of the trapezoid).
+    fn speed(t: f64) -> f64 {
+        let ramp = CRUISE / ACCEL;
+        if t < T_START || t >= T_BRAKE + ramp {
+            0.0
+        } else if t < T_START + ramp {
+            ACCEL * (t - T_START)
+        } else if t < T_BRAKE {
+            CRUISE
+        } else {
+            CRUISE - ACCEL * (t - T_BRAKE)
+        }
+    }
+
+    /// Position along x, m (integral of `speed`, numerically).
+    fn position(t: f64) -> f64 {
+        let n = 2000;
+        let h = t / n as f64;
+        (0..n).map(|k| speed((k as f64 + 0.5) * h) * h).sum::<f64>() - 3.0
+    }
+
+    /// Thrust excess ρ − 1 a BPF frame centred at `tc` reports: the tilt of the acceleration
+    /// (T cos γ = m g, so ρ = √(1 + (a/g)²)) averaged over the frame's 0.512 s span, plus
+    /// in cruise the wake excess of whichever rotor pair the frame happened to hear
+    /// (`cruise_pattern`), plus noise.
+    fn frame_excess(tc: f64, k: usize, sigma: f64, rng: &mut Rng) -> (f64, bool) {
+        let n = 64;
+        let tilt = (0..n)
+            .map(|i| {
+                let t = tc - 0.256 + 0.512 * (i as f64 + 0.5) / n as f64;
+                (1.0 + (accel(t) / G).powi(2)).sqrt() - 1.0
+            })
+            .sum::<f64>()
+            / n as f64;
+        // The wake loss grows with speed; which pair the frame hears decides what it shows:
+        // the rear pair, the front pair, both (a split), or a mix that looks like hover.
+        let v = speed(tc) / CRUISE;
+        let (wake, split) = match k % 4 {
+            0 => (0.02 * v, false),
+            1 => (-0.005 * v, false),
+            2 => (0.01 * v, v > 0.3),
+            _ => (0.0, false),
+        };
+        (tilt + wake + sigma * rng.normal(), split)
+    }
+
+    /// Runs the classifier over the leg with DoA noise `doa_sigma_rad`; returns the classes
+    /// at the 0.1 s output instants.
+    fn run_leg(doa_sigma_rad: f64, seed: u64) -> Vec<(f64, MotionClass)> {
+        let mut rng = Rng::new(seed);
+        let tracker = crate::tracker::TrackerConfig::default();
+        let mut classifier = MotionClassifier::new(tracker.motion.clone());
+        let mut window = DoaWindow::new(tracker.doa.clone());
+        let (doa_period, bpf_period) = (8192.0 / 48_000.0, 12_288.0 / 48_000.0);
+        let (mut next_doa, mut next_bpf, mut k) = (0.085, 0.256, 0usize);
+        let mut out = Vec::new();
+        for step in 1..130 {
+            let t = step as f64 * 0.1;
+            while next_doa <= t {
+                let (x, y, z): (f64, f64, f64) = (position(next_doa), 5.0, 2.0);
+                window.push(Bearing {
+                    t: next_doa,
+                    array_id: 0,
+                    azimuth_rad: y.atan2(x) + doa_sigma_rad * rng.normal(),
+                    zenith_rad: x.hypot(y).atan2(z) + doa_sigma_rad * rng.normal(),
+                    residual: 0.0,
+                    quality: 1.0,
+                });
+                next_doa += doa_period;
+            }
+            while next_bpf <= t {
+                let (excess, split) = frame_excess(next_bpf, k, 1e-3, &mut rng);
+                classifier.add_thrust(ThrustFrame { t: next_bpf, excess, split });
+                next_bpf += bpf_period;
+                k += 1;
+            }
+            let cues = window.latest_t().and_then(|tl| {
+                let long = window.state(tl)?;
+                let short = window.state_over(
+                    tl,
+                    tracker.motion_doa_span_s,
+                    tracker.motion_doa_min_bearings,
+                )?;
+                Some(DoaCues { long, short })
+            });
+            out.push((t, classifier.update(t, cues)));
+        }
+        out
+    }
+
+    /// The bounds follow from the frame timing. Start: the truth passes 0.2 m/s 0.2 s after
+    /// the tilt begins; a 0.512 s frame reaches the 3.5σ start threshold (3.5 ‰ of the
+    /// 5.2 ‰ tilt) once two thirds of its span are accelerating, i.e. centred 0.09 s after
+    /// the start; the next frame centre comes at most 0.256 s later and the next output
+    /// instant at most 0.1 s after that: 0.45 s after the tilt, 0.25 s after the truth.
+    /// Stop: the truth drops below 0.2 m/s 0.2 s before the brake ends; the first frame
+    /// whose span is less than 58 % braking (3σ quiet) is centred at most 0.256 − 0.04 s
+    /// after the brake ends, plus 0.1 s to an output: 0.52 s after the truth.
+    fn check_leg(classes: &[(f64, MotionClass)], start_lag: f64, stop_lag: f64) {
+        let ramp = CRUISE / ACCEL;
+        let truth_start = T_START + 0.2 / ACCEL;
+        let truth_stop = T_BRAKE + ramp - 0.2 / ACCEL;
+        for &(t, class) in classes {
+            let moving = class == MotionClass::Horizontal;
+            if t < T_START || t > truth_stop + stop_lag {
+                assert!(!moving, "moving at {t:.1} s: {classes:?}");
+            }
+            if t > truth_start + start_lag && t < truth_stop {
+                assert!(moving, "{class:?} at {t:.1} s: {classes:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_leg_switches_class_within_the_frame_timing_bounds() {
+        for seed in 1..6 {
+            // Line of sight: 0.5° bearing noise.
+            check_leg(&run_leg(0.5f64.to_radians(), seed), 0.25, 0.52);
+        }
+    }
+
+    #[test]
+    fn blind_doa_keeps_cruise_moving_and_still_stops() {
+        // Reflected bearings (8° noise) tell nothing: an isolated quiet frame in cruise
+        // must not stop the motion; two quiet frames (one frame period more) do.
+        for seed in 1..6 {
+            check_leg(&run_leg(8.0f64.to_radians(), seed), 0.25, 0.52 + 0.256);
+        }
+    }
+
+    #[test]
+    fn rest_level_and_spread_are_learned_from_still_frames() {
+        let mut rng = Rng::new(11);
+        let mut c = MotionClassifier::new(MotionConfig::default());
+        // A hover 0.7 % above the reference the tracker happened to calibrate, 1.2 ‰ noise.
+        for k in 0..60 {
+            let t = 0.256 * k as f64;
+            c.add_thrust(ThrustFrame { t, excess: 0.007 + 1.2e-3 * rng.normal(), split: false });
+            assert_eq!(c.update(t + 0.05, None), MotionClass::Hover, "at {t}");
+        }
+        assert!((c.frame_sigma() - 1.2e-3).abs() < 0.4e-3, "{}", c.frame_sigma());
+        // A tilt of 1 m/s² (5.2 ‰ over the rest level) starts a motion at once.
+        let t = 0.256 * 60.0;
+        c.add_thrust(ThrustFrame { t, excess: 0.007 + 0.0052, split: false });
+        assert_eq!(c.update(t + 0.05, None), MotionClass::Horizontal);
+        // Non-finite or out-of-order frames are ignored.
+        c.add_thrust(ThrustFrame { t: t - 1.0, excess: 0.0, split: false });
+        c.add_thrust(ThrustFrame { t: t + 0.1, excess: f64::NAN, split: false });
+        assert_eq!(c.latest_frame_t(), Some(t));
     }
 }

@@ -9,7 +9,9 @@ use std::collections::VecDeque;
 use crate::doa::{DoaConfig, DoaState, DoaWindow};
 use crate::dynamics::{speed_from_wake, sum_bpf_squared, HoverCalibration, SpeedIntegrator};
 use crate::filter::{new_filter, Filter, FilterKind, Step};
-use crate::motion::{bpf_groups, MotionClass, MotionClassifier};
+use crate::motion::{
+    bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
+};
 use crate::observation::{Input, Spectrum};
 use crate::profile::Profile;
 use crate::site::Site;
@@ -23,8 +25,13 @@ pub struct TrackerConfig {
     pub array_id: Option<u16>,
     /// DoA window tunables.
     pub doa: DoaConfig,
-    /// Majority-vote window of the motion class, s.
-    pub class_window_s: f64,
+    /// Still/moving state machine tunables.
+    pub motion: MotionConfig,
+    /// Span of the DoA trend the motion class uses (at most `doa.window_s`), s.
+    pub motion_doa_span_s: f64,
+    /// ... extended back to at least this many bearings (five keep the slope's standard
+    /// error small enough to call a stop).
+    pub motion_doa_min_bearings: usize,
     /// BPF peaks weaker than this fraction of the strongest are ignored.
     pub min_relative_amplitude: f64,
     /// BPF peaks closer than this are one group, Hz.
@@ -37,7 +44,7 @@ pub struct TrackerConfig {
     pub accel_sigmas: f64,
     /// Window of BPF frames averaged for the thrust excess, s.
     pub excess_window_s: f64,
-    /// Two BPF groups heard this recently count as a split, s.
+    /// BPF frames are kept at least this long (with `excess_window_s` and `stale_s`), s.
     pub split_memory_s: f64,
 }
 
@@ -47,7 +54,9 @@ impl Default for TrackerConfig {
             output_period_s: 0.1,
             array_id: None,
             doa: DoaConfig::default(),
-            class_window_s: 0.5,
+            motion: MotionConfig::default(),
+            motion_doa_span_s: 0.6,
+            motion_doa_min_bearings: 5,
             min_relative_amplitude: 0.25,
             min_separation_hz: 2.0,
             stale_s: 0.5,
@@ -163,7 +172,7 @@ impl Tracker {
         };
         Ok(Self {
             window: DoaWindow::new(config.doa.clone()),
-            classifier: MotionClassifier::new(config.class_window_s),
+            classifier: MotionClassifier::new(config.motion.clone()),
             calibration: HoverCalibration::new(&profile),
             speed: SpeedIntegrator::new(&profile),
             filter: new_filter(kind),
@@ -268,7 +277,7 @@ impl Tracker {
             Some(tl) if t - tl <= c.stale_s => self.window.state(tl),
             _ => None,
         };
-        // BPF frames of the last `excess_window_s`: mean Σ BPF² and whether a split was heard.
+        // BPF frames of the last `excess_window_s`: mean Σ BPF² (the acoustic speed's input).
         let recent: Vec<&(f64, f64, usize)> = self
             .spectra
             .iter()
@@ -280,12 +289,6 @@ impl Tracker {
             .collect();
         let mean_sum_sq = (!recent.is_empty())
             .then(|| recent.iter().map(|r| r.1).sum::<f64>() / recent.len() as f64);
-        let split_heard = self
-            .spectra
-            .iter()
-            .rev()
-            .take_while(|(ts, _, _)| *ts > t - c.split_memory_s)
-            .any(|(_, _, g)| *g >= 2);
         let (excess, excess_significant) = match mean_sum_sq {
             Some(m) => {
                 let (e, _) = self.calibration.excess(m, 0.0);
@@ -294,23 +297,23 @@ impl Tracker {
             }
             None => (0.0, false),
         };
-        // Table I, with the split heard in either form: two BPF groups, or a significant
-        // thrust excess (a tilt, or the rear rotors working in the wake), neither of which a
-        // vertical climb at constant speed or a hover shows.
-        let doa_moving = doa.is_some_and(|d| d.moving);
-        let moving = doa_moving || excess_significant;
-        // A climb's thrust excess has no split and moves the DoA in zenith only.
-        let zenith_only = doa.is_some_and(|d| {
-            d.moving && (d.zenith_rad.sin() * d.azimuth_rate).abs() < 0.3 * d.zenith_rate.abs()
+        // Each new BPF frame, one by one, to the still/moving state machine: the thrust
+        // excess of a single frame marks the start of an acceleration at once. The scale is
+        // the profile's fixed hover Σ BPF² (the classifier measures its own rest level on it,
+        // so it does not move when the hover calibration does).
+        let newest = self.classifier.latest_frame_t().unwrap_or(f64::NEG_INFINITY);
+        let reference = self.profile.rotors() as f64 * self.profile.hover_bpf_hz().powi(2);
+        for &(ts, sum, groups) in self.spectra.iter().filter(|f| f.0 > newest && f.0 <= t) {
+            let excess = sum / reference - 1.0;
+            self.classifier.add_thrust(ThrustFrame { t: ts, excess, split: groups >= 2 });
+        }
+        // The DoA trend over a short span follows starts and stops; the full window tells a
+        // climb (zenith alone) from a sweep in azimuth.
+        let short = doa.and_then(|d| {
+            self.window.state_over(d.t, c.motion_doa_span_s, c.motion_doa_min_bearings)
         });
-        let multiple = split_heard || (excess_significant && excess > 0.0 && !zenith_only);
-        // Table I's "one peak, DoA unstable" is a climb only if the DoA moves in zenith alone;
-        // a DoA sweeping in azimuth is horizontal flight whose split went unheard.
-        let raw = match MotionClass::from_cues(multiple, moving) {
-            MotionClass::Vertical if !zenith_only => MotionClass::Horizontal,
-            class => class,
-        };
-        let motion = self.classifier.update(t, raw);
+        let doa_cues = doa.zip(short).map(|(long, short)| DoaCues { long, short });
+        let motion = self.classifier.update(t, doa_cues);
         let groups = self.spectra.back().map_or(0, |s| s.2);
         if motion == MotionClass::Hover && !excess_significant {
             self.hover_run_s += dt;
