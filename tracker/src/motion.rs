@@ -140,6 +140,9 @@ pub struct MotionConfig {
     pub doa_sigmas: f64,
     /// ... and this rate, rad/s.
     pub doa_min_rate: f64,
+    /// Consecutive decisions with a trend in both DoA spans that start a motion without a
+    /// thrust cue.
+    pub doa_start_decisions: usize,
     /// Memory of the pooled bearing noise, decisions.
     pub doa_noise_memory: f64,
     /// Full DoA windows with fewer inliers do not update the pooled noise, and the DoA
@@ -165,6 +168,7 @@ impl Default for MotionConfig {
             min_sigma: 5e-4,
             doa_sigmas: 3.0,
             doa_min_rate: 1.0f64.to_radians(),
+            doa_start_decisions: 2,
             doa_noise_memory: 50.0,
             doa_min_pooled_inliers: 5,
             stale_s: 0.6,
@@ -228,6 +232,8 @@ pub struct MotionClassifier {
     sigma_weight: f64,
     /// Time of the newest frame already judged as a start cue.
     judged_t: f64,
+    /// Consecutive still decisions with a trend in both DoA spans.
+    doa_start_run: usize,
     /// Pooled variance of one bearing component, rad², and its weight in decisions.
     doa_noise_sq: f64,
     doa_noise_weight: f64,
@@ -248,6 +254,7 @@ impl MotionClassifier {
             sigma_sq,
             sigma_weight,
             judged_t: f64::NEG_INFINITY,
+            doa_start_run: 0,
             doa_noise_sq: 0.0,
             doa_noise_weight: 0.0,
         }
@@ -365,16 +372,27 @@ impl MotionClassifier {
                 if let Some(f) = newest {
                     self.judged_t = f.t;
                 }
-                // A thrust excess beyond the start threshold, or a split with more than
-                // quiet thrust (a tilt), or a trend in both DoA spans.
+                // A thrust excess beyond the start threshold in the newest frame, or in the
+                // sum of the newest two (a step onset split across frames: the sum of two
+                // has √2 spreads), or a split with more than quiet thrust (a tilt).
+                let previous = (fresh.len() >= 2).then(|| fresh[fresh.len() - 2]);
                 let thrust_start = newest.is_some_and(|f| {
                     let e = self.excess_over_rest(&f);
+                    let pair = previous
+                        .filter(|p| !p.split && !f.split)
+                        .map_or(0.0, |p| e + self.excess_over_rest(&p));
                     calibrated
                         && (e.abs() > c.start_sigmas * sigma
+                            || pair.abs() > c.start_sigmas * sigma * std::f64::consts::SQRT_2
                             || (f.split && e > c.quiet_sigmas * sigma))
                 });
-                if thrust_start || (doa_moving && long_moving) {
+                // A trend in both DoA spans, in `doa_start_decisions` decisions running (a
+                // still drone's bearings do not trend for long).
+                self.doa_start_run =
+                    if doa_moving && long_moving { self.doa_start_run + 1 } else { 0 };
+                if thrust_start || self.doa_start_run >= c.doa_start_decisions {
                     self.phase = Phase::Moving;
+                    self.doa_start_run = 0;
                 }
             }
             Phase::Moving => {
