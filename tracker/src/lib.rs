@@ -26,4 +26,5 @@ pub mod site;
 #[cfg(test)]
 mod testutil;
 pub mod tracker;
+pub mod wake;
 pub mod yaw;

@@ -7,7 +7,7 @@
 use std::collections::VecDeque;
 
 use crate::doa::{DoaConfig, DoaState, DoaWindow};
-use crate::dynamics::{speed_from_wake, sum_bpf_squared, HoverCalibration, SpeedIntegrator};
+use crate::dynamics::{sum_bpf_squared, HoverCalibration, SpeedIntegrator};
 use crate::filter::{new_filter, Filter, FilterKind, Step};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
@@ -15,6 +15,11 @@ use crate::motion::{
 use crate::observation::{Input, Spectrum};
 use crate::profile::Profile;
 use crate::site::Site;
+use crate::wake::{WakeConfig, WakeSpeed};
+
+/// Standard deviation given to the integrated horizontal speed while the wake cue of a leg
+/// has not settled, m/s.
+const UNSETTLED_SPEED_SIGMA_MPS: f64 = 1.0;
 
 /// Tunables of the pipeline.
 #[derive(Clone, Debug, PartialEq)]
@@ -125,6 +130,10 @@ pub struct Tracker {
     classifier: MotionClassifier,
     calibration: HoverCalibration,
     speed: SpeedIntegrator,
+    /// Cruise speed from the wake excess (None without a wake coefficient).
+    wake: Option<WakeSpeed>,
+    /// Time of the newest spectrum frame given to `wake`, s.
+    wake_last_t: f64,
     filter: Box<dyn Filter + Send>,
     next_output: Option<f64>,
     last_output: Option<f64>,
@@ -175,6 +184,11 @@ impl Tracker {
             classifier: MotionClassifier::new(config.motion.clone()),
             calibration: HoverCalibration::new(&profile),
             speed: SpeedIntegrator::new(&profile),
+            wake: WakeSpeed::new(
+                WakeConfig::default(),
+                profile.wake_loss_per_mps * profile.downstream_sum() / profile.rotors() as f64,
+            ),
+            wake_last_t: f64::NEG_INFINITY,
             filter: new_filter(kind),
             config,
             site,
@@ -289,14 +303,11 @@ impl Tracker {
             .collect();
         let mean_sum_sq = (!recent.is_empty())
             .then(|| recent.iter().map(|r| r.1).sum::<f64>() / recent.len() as f64);
-        let (excess, excess_significant) = match mean_sum_sq {
-            Some(m) => {
-                let (e, _) = self.calibration.excess(m, 0.0);
-                let sigma = self.calibration.rel_sigma() / (recent.len() as f64).sqrt();
-                (e, self.calibration.is_calibrated() && e.abs() > c.accel_sigmas * sigma)
-            }
-            None => (0.0, false),
-        };
+        let excess_significant = mean_sum_sq.is_some_and(|m| {
+            let (e, _) = self.calibration.excess(m, 0.0);
+            let sigma = self.calibration.rel_sigma() / (recent.len() as f64).sqrt();
+            self.calibration.is_calibrated() && e.abs() > c.accel_sigmas * sigma
+        });
         // Each new BPF frame, one by one, to the still/moving state machine: the thrust
         // excess of a single frame marks the start of an acceleration at once. The scale is
         // the profile's fixed hover Σ BPF² (the classifier measures its own rest level on it,
@@ -326,20 +337,27 @@ impl Tracker {
             self.hover_run_s = 0.0;
         }
         let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
-        if motion == MotionClass::Horizontal {
-            let wake = speed_from_wake(
-                excess,
-                self.profile.rotors(),
-                self.profile.wake_loss_per_mps,
-                self.profile.downstream_sum(),
-            );
-            if let (Some(v), true) = (wake, self.calibration.is_calibrated()) {
-                let k = self.profile.wake_loss_per_mps * self.profile.downstream_sum()
-                    / self.profile.rotors() as f64;
-                let sigma = self.calibration.rel_sigma() / (recent.len().max(1) as f64).sqrt() / k;
-                speed.horizontal = v;
-                speed.horizontal_sigma = sigma.max(0.1 * v).max(0.1);
+        if let Some(wake) = self.wake.as_mut() {
+            if motion == MotionClass::Horizontal && self.calibration.is_calibrated() {
+                let hover = self.calibration.hover_sum_sq();
+                for &(ts, sum, _) in
+                    self.spectra.iter().filter(|f| f.0 > self.wake_last_t && f.0 <= t)
+                {
+                    wake.push(ts, sum / hover - 1.0);
+                }
+                if let Some((v, sigma)) = wake.estimate() {
+                    speed.horizontal = v;
+                    speed.horizontal_sigma = sigma;
+                } else {
+                    // Before the wake is heard the integrated speed is all there is, and in
+                    // flight it is poor: frame-to-frame scatter of the excess (≈ 1 %) is as
+                    // large as the tilt of a 1 m/s² acceleration (0.5 %).
+                    speed.horizontal_sigma = speed.horizontal_sigma.max(UNSETTLED_SPEED_SIGMA_MPS);
+                }
+            } else {
+                wake.reset();
             }
+            self.wake_last_t = t;
         }
         let los = doa.is_some_and(|d| d.los);
         self.diagnostics.push(Diagnostics {

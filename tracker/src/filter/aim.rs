@@ -6,7 +6,7 @@
 //! bearing, speed and motion-class updates, weighted by its measurement likelihoods. The
 //! mixture's covariance (spread of hypotheses included) is reported honestly.
 
-use super::ekf::Ekf;
+use super::ekf::{Ekf, STATE, ZENITH_BIAS};
 use super::{max_range_in_room, world_direction, Estimate, Filter, Step};
 use crate::linalg::Mat;
 use crate::motion::MotionClass;
@@ -26,12 +26,42 @@ pub struct AimConfig {
     /// zenith through |u_xy| = sin φ, flat near grazing, and reflections bias it there (the
     /// simulator's ReSpeaker 6-mic pipeline reads 70–73° for a drone at 80°).
     pub zenith_sigma_floor: f64,
+    /// Noise of |u_xy| = sin φ, the quantity a planar array measures; as a zenith noise it is
+    /// `zenith_sin_sigma / cos φ`, growing without bound towards grazing incidence.
+    pub zenith_sin_sigma: f64,
+    /// Azimuth noise floor without line of sight, rad: a path diffracted over a horizontal
+    /// edge (a shelf top) keeps the azimuth, not the zenith (measured on square10-nlos: median
+    /// azimuth error 2.3°, zenith −14°), so only the azimuth is used. Not gated: a gate locks
+    /// a mixture that has drifted away out of the one cue that brings it back (measured: the
+    /// 3σ gate made square10-nlos 6.4 m against 3.5 m without).
+    pub nlos_azimuth_sigma: f64,
     /// White-acceleration density while moving along the class's axes, m²/s³.
     pub q_moving: f64,
     /// White-acceleration density otherwise, m²/s³.
     pub q_still: f64,
+    /// White-acceleration density of cruise: moving, but neither accelerating (no thrust
+    /// excess heard) nor just after a class change; the velocity is held, m²/s³.
+    pub q_cruise: f64,
+    /// After a motion-class change the velocity may still be changing for this long, s.
+    pub manoeuvre_hold_s: f64,
+    /// Stationary standard deviation of the zenith bias, rad.
+    pub zenith_bias_sigma: f64,
+    /// Correlation time of the zenith bias, s.
+    pub zenith_bias_tau_s: f64,
     /// Velocity noise of the motion-class pseudo-measurements, m/s.
     pub pseudo_sigma: f64,
+    /// Vertical-velocity noise of the hold-altitude pseudo-measurement outside vertical
+    /// motion, m/s (a multirotor's altitude controller holds height to a few cm/s).
+    pub hold_altitude_sigma: f64,
+    /// White-acceleration density of the height while altitude is held, m²/s³.
+    pub q_hold_altitude: f64,
+    /// Headings each hypothesis is split into when the drone starts a horizontal leg from
+    /// rest: the direction of a new leg is not known until its bearings have moved.
+    pub leg_headings: usize,
+    /// Initial speed of a heading hypothesis (before the speed cue grows), m/s.
+    pub leg_start_speed: f64,
+    /// Most hypotheses kept (the lightest are dropped beyond it).
+    pub max_hypotheses: usize,
     /// Hypotheses lighter than this fraction of the heaviest are dropped.
     pub prune_ratio: f64,
 }
@@ -43,10 +73,21 @@ impl Default for AimConfig {
             range_max_m: 25.0,
             hypotheses: 12,
             bearing_sigma_floor: 1.0f64.to_radians(),
-            zenith_sigma_floor: 5.0f64.to_radians(),
+            zenith_sigma_floor: 1.5f64.to_radians(),
+            zenith_sin_sigma: 0.01,
+            nlos_azimuth_sigma: 5.0f64.to_radians(),
             q_moving: 0.6,
             q_still: 0.02,
+            q_cruise: 0.02,
+            manoeuvre_hold_s: 1.0,
+            zenith_bias_sigma: 4.0f64.to_radians(),
+            zenith_bias_tau_s: 20.0,
             pseudo_sigma: 0.1,
+            hold_altitude_sigma: 0.02,
+            q_hold_altitude: 0.001,
+            leg_headings: 8,
+            leg_start_speed: 0.5,
+            max_hypotheses: 96,
             prune_ratio: 1e-4,
         }
     }
@@ -58,12 +99,16 @@ pub struct AimFilter {
     config: AimConfig,
     /// (log weight, filter) per hypothesis.
     components: Vec<(f64, Ekf)>,
+    /// Motion class of the previous step.
+    last_class: Option<MotionClass>,
+    /// Time since the motion class last changed, s.
+    since_class_change_s: f64,
 }
 
 impl AimFilter {
     /// A filter with explicit tunables.
     pub fn new(config: AimConfig) -> Self {
-        Self { config, components: Vec::new() }
+        Self { config, ..Self::default() }
     }
 
     /// Number of live hypotheses.
@@ -83,11 +128,13 @@ impl AimFilter {
             .map(|k| {
                 let r = c.range_min_m * ratio.powi(k as i32);
                 let p = step.array.position;
-                let x = [p[0] + r * dir[0], p[1] + r * dir[1], p[2] + r * dir[2], 0.0, 0.0, 0.0];
+                let x =
+                    [p[0] + r * dir[0], p[1] + r * dir[1], p[2] + r * dir[2], 0.0, 0.0, 0.0, 0.0];
                 // Along the ray: half the spacing to the neighbours; across: the bearing noise.
                 let along = r * (ratio - 1.0) * 0.5;
                 let across = r * 3.0f64.to_radians();
-                let mut cov = Mat::zeros(6, 6);
+                let mut cov = Mat::zeros(STATE, STATE);
+                cov[(ZENITH_BIAS, ZENITH_BIAS)] = c.zenith_bias_sigma.powi(2);
                 for i in 0..3 {
                     for j in 0..3 {
                         let proj = dir[i] * dir[j];
@@ -100,6 +147,45 @@ impl AimFilter {
             })
             .collect();
         true
+    }
+
+    /// Splits every hypothesis into `leg_headings` copies whose horizontal velocities point
+    /// evenly around the compass at `leg_start_speed`.
+    fn split_headings(&mut self) {
+        let c = &self.config;
+        let k = c.leg_headings;
+        if k < 2 {
+            return;
+        }
+        let spread = std::f64::consts::PI / k as f64;
+        let mut split = Vec::with_capacity(self.components.len() * k);
+        for (lw, f) in &self.components {
+            for j in 0..k {
+                let theta = std::f64::consts::TAU * j as f64 / k as f64;
+                let mut g = f.clone();
+                let (s, co) = theta.sin_cos();
+                g.x[3] = c.leg_start_speed * co;
+                g.x[4] = c.leg_start_speed * s;
+                // Along the heading: the speed is still growing; across: half the spacing.
+                let along = c.leg_start_speed;
+                let across = c.leg_start_speed * spread;
+                for a in 3..5 {
+                    for b in 3..5 {
+                        g.p[(a, b)] = 0.0;
+                    }
+                    for b in [0, 1, 2, 5, 6] {
+                        g.p[(a, b)] = 0.0;
+                        g.p[(b, a)] = 0.0;
+                    }
+                }
+                g.p[(3, 3)] = along * along * co * co + across * across * s * s;
+                g.p[(4, 4)] = along * along * s * s + across * across * co * co;
+                g.p[(3, 4)] = (along * along - across * across) * co * s;
+                g.p[(4, 3)] = g.p[(3, 4)];
+                split.push((lw - (k as f64).ln(), g));
+            }
+        }
+        self.components = split;
     }
 
     fn estimate(&self) -> Estimate {
@@ -137,27 +223,50 @@ impl Filter for AimFilter {
             return Some(self.estimate());
         }
         let c = self.config.clone();
+        if self.last_class == Some(step.motion) {
+            self.since_class_change_s += step.dt;
+        } else {
+            let from_rest = matches!(self.last_class, Some(MotionClass::Hover | MotionClass::Yaw));
+            if from_rest && step.motion == MotionClass::Horizontal {
+                self.split_headings();
+            }
+            self.since_class_change_s = 0.0;
+            self.last_class = Some(step.motion);
+        }
+        let manoeuvre = step.speed.accelerating || self.since_class_change_s < c.manoeuvre_hold_s;
+        let q_h = if manoeuvre { c.q_moving } else { c.q_cruise };
         let q = match step.motion {
-            MotionClass::Horizontal => [c.q_moving, c.q_moving, c.q_still],
+            MotionClass::Horizontal => [q_h, q_h, c.q_hold_altitude],
             MotionClass::Vertical => [c.q_still, c.q_still, c.q_moving],
-            MotionClass::Hover | MotionClass::Yaw => [c.q_still; 3],
+            MotionClass::Hover | MotionClass::Yaw => [c.q_still, c.q_still, c.q_hold_altitude],
         };
         let bearing = match (step.los, step.doa) {
             (true, Some(d)) => {
                 let sigma = d.erratic_rad.max(c.bearing_sigma_floor);
-                let sigma_zen = d.erratic_rad.max(c.zenith_sigma_floor);
+                let sigma_zen = d
+                    .erratic_rad
+                    .max(c.zenith_sigma_floor)
+                    .max(c.zenith_sin_sigma / d.zenith_rad.cos().max(0.02));
                 Some((d.azimuth_rad, d.zenith_rad, sigma / d.zenith_rad.sin().max(0.05), sigma_zen))
             }
+            _ => None,
+        };
+        let nlos_azimuth = match (step.los, step.doa) {
+            (false, Some(d)) => Some((
+                d.azimuth_rad,
+                d.erratic_rad.max(c.nlos_azimuth_sigma) / d.zenith_rad.sin().max(0.05),
+            )),
             _ => None,
         };
         let s = step.speed;
         let moving = matches!(step.motion, MotionClass::Horizontal | MotionClass::Vertical);
         for (lw, f) in self.components.iter_mut() {
-            f.predict(step.dt, q);
+            f.predict(step.dt, q, c.zenith_bias_tau_s, c.zenith_bias_sigma);
             let mut ll = 0.0;
             match step.motion {
                 MotionClass::Hover | MotionClass::Yaw => {
-                    f.update_velocity(&[0, 1, 2], &[0.0, 0.0, 0.0], c.pseudo_sigma);
+                    f.update_velocity(&[0, 1], &[0.0, 0.0], c.pseudo_sigma);
+                    f.update_velocity(&[2], &[0.0], c.hold_altitude_sigma);
                 }
                 MotionClass::Vertical => {
                     f.update_velocity(&[0, 1], &[0.0, 0.0], c.pseudo_sigma);
@@ -166,7 +275,7 @@ impl Filter for AimFilter {
                         .unwrap_or(0.0);
                 }
                 MotionClass::Horizontal => {
-                    f.update_velocity(&[2], &[0.0], c.pseudo_sigma);
+                    f.update_velocity(&[2], &[0.0], c.hold_altitude_sigma);
                 }
             }
             if let Some((az, zen, saz, szen)) = bearing {
@@ -174,6 +283,12 @@ impl Filter for AimFilter {
                 // rank hypotheses by how process noise looks from the array, so it is not
                 // counted then.
                 let l = f.update_bearing(step.array, az, zen, saz, szen).unwrap_or(0.0);
+                if moving {
+                    ll += l;
+                }
+            }
+            if let Some((az, saz)) = nlos_azimuth {
+                let l = f.update_azimuth(step.array, az, saz).unwrap_or(0.0);
                 if moving {
                     ll += l;
                 }
@@ -194,6 +309,10 @@ impl Filter for AimFilter {
         let best = self.components.iter().map(|(lw, _)| *lw).fold(f64::NEG_INFINITY, f64::max);
         let keep = c.prune_ratio.ln();
         self.components.retain(|(lw, _)| *lw - best >= keep);
+        if self.components.len() > c.max_hypotheses {
+            self.components.sort_by(|a, b| b.0.total_cmp(&a.0));
+            self.components.truncate(c.max_hypotheses);
+        }
         let total =
             self.components.iter().map(|(lw, _)| (lw - best).exp()).sum::<f64>().ln() + best;
         for (lw, _) in self.components.iter_mut() {

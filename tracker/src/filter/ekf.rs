@@ -1,16 +1,29 @@
-//! One extended Kalman filter on [x y z vx vy vz] (world ENU, m and m/s), white-acceleration
-//! process noise, Joseph-form updates that keep the covariance symmetric positive definite.
+//! One extended Kalman filter on [x y z vx vy vz b] (world ENU, m and m/s; b the zenith bias of
+//! the array's DoA, rad), white-acceleration process noise, Joseph-form updates that keep the
+//! covariance symmetric positive definite.
+//!
+//! The bias state exists because a planar array's zenith near grazing incidence is biased by
+//! coherent reflections of the tonal rotor sound (the ceiling and wall images pull |u_xy|
+//! inwards): the error is not white but a slowly varying offset of several degrees. Modelled as
+//! a first-order Gauss–Markov process it lets zenith *changes* inform the track while the
+//! absolute zenith only counts within the bias's spread.
 
 use crate::linalg::Mat;
 use crate::observation::{angles_of, wrap_pi};
 use crate::site::ArrayPose;
 
+/// Length of the state vector.
+pub const STATE: usize = 7;
+
+/// Index of the zenith bias in the state.
+pub const ZENITH_BIAS: usize = 6;
+
 /// State and covariance of one constant-velocity EKF.
 #[derive(Clone, Debug)]
 pub struct Ekf {
-    /// State [x y z vx vy vz].
-    pub x: [f64; 6],
-    /// Covariance, 6×6.
+    /// State [x y z vx vy vz b]: position m, velocity m/s, zenith bias rad.
+    pub x: [f64; STATE],
+    /// Covariance, 7×7.
     pub p: Mat,
 }
 
@@ -25,7 +38,7 @@ pub enum Residual {
 
 impl Ekf {
     /// A filter at `x` with covariance `p`.
-    pub fn new(x: [f64; 6], p: Mat) -> Self {
+    pub fn new(x: [f64; STATE], p: Mat) -> Self {
         Self { x, p }
     }
 
@@ -40,17 +53,22 @@ impl Ekf {
     }
 
     /// Constant-velocity prediction over `dt` seconds with white-acceleration spectral
-    /// densities `q` (per axis, m²/s³).
-    pub fn predict(&mut self, dt: f64, q: [f64; 3]) {
+    /// densities `q` (per axis, m²/s³); the zenith bias relaxes towards zero with time constant
+    /// `bias_tau_s` (s) and stationary standard deviation `bias_sigma` (rad).
+    pub fn predict(&mut self, dt: f64, q: [f64; 3], bias_tau_s: f64, bias_sigma: f64) {
         if dt <= 0.0 {
             return;
         }
-        let mut f = Mat::identity(6);
+        let mut f = Mat::identity(STATE);
         for i in 0..3 {
             f[(i, i + 3)] = dt;
             self.x[i] += dt * self.x[i + 3];
         }
-        let mut qm = Mat::zeros(6, 6);
+        let decay = (-dt / bias_tau_s.max(1e-3)).exp();
+        f[(ZENITH_BIAS, ZENITH_BIAS)] = decay;
+        self.x[ZENITH_BIAS] *= decay;
+        let mut qm = Mat::zeros(STATE, STATE);
+        qm[(ZENITH_BIAS, ZENITH_BIAS)] = bias_sigma * bias_sigma * (1.0 - decay * decay);
         for (i, qi) in q.iter().enumerate() {
             qm[(i, i)] = qi * dt.powi(3) / 3.0;
             qm[(i, i + 3)] = qi * dt.powi(2) / 2.0;
@@ -60,7 +78,7 @@ impl Ekf {
         self.p = (&(&(&f * &self.p) * &f.t()) + &qm).symmetrized();
     }
 
-    /// Update with measurement `z`, prediction `hx`, Jacobian `h` (m×6) and noise `r` (m×m).
+    /// Update with measurement `z`, prediction `hx`, Jacobian `h` (m×7) and noise `r` (m×m).
     /// Returns the log-likelihood of the innovation, or `None` (no update) if the innovation
     /// covariance is singular.
     pub fn update(
@@ -86,16 +104,17 @@ impl Ekf {
         let k = &pht * &s_inv;
         let yv = Mat::column(&y);
         let dx = &k * &yv;
-        for i in 0..6 {
+        for i in 0..STATE {
             self.x[i] += dx[(i, 0)];
         }
-        let i_kh = &Mat::identity(6) - &(&k * h);
+        let i_kh = &Mat::identity(STATE) - &(&k * h);
         self.p = (&(&(&i_kh * &self.p) * &i_kh.t()) + &(&(&k * r) * &k.t())).symmetrized();
         let maha = (&(&yv.t() * &s_inv) * &yv)[(0, 0)];
         Some(-0.5 * (maha + det.ln() + m as f64 * (std::f64::consts::TAU).ln()))
     }
 
-    /// Bearing update: measured azimuth and zenith (rad, array frame) with standard deviations.
+    /// Bearing update: measured azimuth and zenith (rad, array frame) with standard deviations
+    /// of their white parts; the measured zenith is the true one plus the bias state.
     pub fn update_bearing(
         &mut self,
         array: &ArrayPose,
@@ -114,7 +133,9 @@ impl Ekf {
         };
         let pos = self.position();
         let (az0, zen0) = predict(pos);
-        let mut h = Mat::zeros(2, 6);
+        let zen0 = zen0 + self.x[ZENITH_BIAS];
+        let mut h = Mat::zeros(2, STATE);
+        h[(1, ZENITH_BIAS)] = 1.0;
         let eps = 1e-4
             * (1.0
                 + crate::observation::norm([
@@ -136,6 +157,31 @@ impl Ekf {
         self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)
     }
 
+    /// Azimuth-only update (rad, array frame, standard deviation `sigma`).
+    pub fn update_azimuth(&mut self, array: &ArrayPose, azimuth: f64, sigma: f64) -> Option<f64> {
+        let predict = |pos: [f64; 3]| {
+            let rel = [
+                pos[0] - array.position[0],
+                pos[1] - array.position[1],
+                pos[2] - array.position[2],
+            ];
+            angles_of(array.to_array(rel)).0
+        };
+        let pos = self.position();
+        let az0 = predict(pos);
+        let mut h = Mat::zeros(1, STATE);
+        let eps = 1e-4;
+        for i in 0..3 {
+            let mut plus = pos;
+            let mut minus = pos;
+            plus[i] += eps;
+            minus[i] -= eps;
+            h[(0, i)] = wrap_pi(predict(plus) - predict(minus)) / (2.0 * eps);
+        }
+        let r = Mat::diagonal(&[sigma * sigma]);
+        self.update(&[azimuth], &[az0], &h, &r, Residual::AzimuthFirst)
+    }
+
     /// Horizontal speed update |v_xy| = `speed` ± `sigma`; skipped (None) while the predicted
     /// speed is too small for a direction.
     pub fn update_horizontal_speed(&mut self, speed: f64, sigma: f64) -> Option<f64> {
@@ -143,7 +189,7 @@ impl Ekf {
         if s < 0.05 {
             return None;
         }
-        let mut h = Mat::zeros(1, 6);
+        let mut h = Mat::zeros(1, STATE);
         h[(0, 3)] = self.x[3] / s;
         h[(0, 4)] = self.x[4] / s;
         self.update(&[speed], &[s], &h, &Mat::diagonal(&[sigma * sigma]), Residual::Linear)
@@ -151,7 +197,7 @@ impl Ekf {
 
     /// Linear update of selected velocity components towards `values` ± `sigma`.
     pub fn update_velocity(&mut self, axes: &[usize], values: &[f64], sigma: f64) -> Option<f64> {
-        let mut h = Mat::zeros(axes.len(), 6);
+        let mut h = Mat::zeros(axes.len(), STATE);
         let mut hx = Vec::with_capacity(axes.len());
         for (row, &axis) in axes.iter().enumerate() {
             h[(row, 3 + axis)] = 1.0;
@@ -175,12 +221,12 @@ mod tests {
     fn covariance_stays_symmetric_positive_definite() {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.3, 0.0, 0.0);
         let mut f = Ekf::new(
-            [5.0, 1.0, 2.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[4.0, 4.0, 1.0, 1.0, 1.0, 1.0]),
+            [5.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e-3]),
         );
         let mut rng = crate::testutil::Rng::new(11);
         for k in 0..300 {
-            f.predict(0.1, [0.5, 0.5, 0.05]);
+            f.predict(0.1, [0.5, 0.5, 0.05], 20.0, 0.05);
             let t = k as f64 * 0.1;
             let truth = [6.0 + 1.5 * (0.2 * t).cos(), 1.0 + 1.5 * (0.2 * t).sin(), 2.0];
             let (az, zen) = angles_of(array.to_array(truth));
@@ -218,8 +264,8 @@ mod tests {
     fn bearing_update_moves_towards_the_ray() {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut f = Ekf::new(
-            [5.0, 0.0, 2.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0]),
+            [5.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-6]),
         );
         let truth = [5.0, 1.0, 2.0];
         let (az, zen) = angles_of(truth);

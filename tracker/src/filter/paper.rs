@@ -96,11 +96,15 @@ impl Filter for PaperFilter {
             self.height = Some((h + normal_up.signum() * s.vertical * step.dt).max(0.2));
         }
         let h = self.height.unwrap_or(c.initial_height_m);
-        let measured = match (step.los, w) {
+        // The first fix comes from the first DoA, LoS or not (the paper initialises A_0 from
+        // the first points of the flight); afterwards NLoS DoA is dropped.
+        let first = self.previous_estimate.is_none();
+        let measured = match (step.los || first, w) {
             (true, Some(w)) => {
                 let rel = step.array.to_world([h * w[0], h * w[1], h * w[2]]);
                 let p = step.array.position;
-                Some(([p[0] + rel[0], p[1] + rel[1], p[2] + rel[2]], c.sigma_los_m))
+                let sigma = if step.los { c.sigma_los_m } else { c.sigma_nlos_m };
+                Some(([p[0] + rel[0], p[1] + rel[1], p[2] + rel[2]], sigma))
             }
             _ => self.previous_estimate.map(|prev| {
                 let mut x = prev;
