@@ -6,8 +6,8 @@
 //! blades = 2                    # blades per propeller, n
 //! mass_kg = 0.249
 //! k_v = 2.27e-5                 # thrust coefficient, N/Hz² of rotation frequency (self-calibrated on hover)
-//! k_h = 3.4e-7                  # drag-torque coefficient, N·m/Hz²
-//! i_z = 4.0e-4                  # yaw moment of inertia, kg·m²
+//! k_h = 2.72e-7                 # drag-torque coefficient, N·m/Hz²
+//! i_z = 7.5e-4                  # yaw moment of inertia, kg·m²
 //! lambda_h = 0.01               # horizontal quadratic drag, N·s²/m²
 //! lambda_v = 0.02               # vertical quadratic drag, N·s²/m²
 //! bpf_min_hz = 200.0            # BPF search range
