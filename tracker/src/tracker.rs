@@ -1,8 +1,8 @@
 //! The single-array AIM pipeline: inputs in time order → fixes at a fixed output period.
 //!
 //! Per output instant: the array's DoA window (IQR smoothing, trend, LoS) → BPF groups →
-//! motion class (Table I, majority vote) → hover self-calibration and acoustic speeds →
-//! the chosen filter → one [`Fix`].
+//! motion class (Table I, a causal still/moving state machine) → hover self-calibration and
+//! acoustic speeds (the leg's wake) → the chosen filter → one [`Fix`].
 
 use std::collections::VecDeque;
 
