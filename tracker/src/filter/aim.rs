@@ -321,3 +321,99 @@ impl Filter for AimFilter {
         Some(self.estimate())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::doa::DoaState;
+    use crate::dynamics::AcousticSpeed;
+    use crate::observation::angles_of;
+    use crate::site::ArrayPose;
+
+    fn doa(t: f64, pos: [f64; 3], rng: &mut crate::testutil::Rng) -> DoaState {
+        let (az, zen) = angles_of(pos);
+        DoaState {
+            t,
+            azimuth_rad: az + 0.5f64.to_radians() * rng.normal(),
+            zenith_rad: zen + 0.5f64.to_radians() * rng.normal(),
+            azimuth_rate: 0.0,
+            zenith_rate: 0.0,
+            angular_rate: 0.0,
+            angular_rate_sigma: 0.0,
+            erratic_rad: 0.0,
+            fit_residual: 0.2,
+            quality: 0.5,
+            inlier_fraction: 1.0,
+            inliers: 6,
+            noise_rad: 0.01,
+            time_spread_s: 0.5,
+            los: true,
+            moving: false,
+        }
+    }
+
+    /// A drone hovers, then flies a straight leg at 1.5 m/s in `heading` (rad); returns the
+    /// filter's velocity direction and position error at the end of the leg.
+    fn fly_leg(config: AimConfig, heading: f64) -> (f64, f64) {
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let mut filter = AimFilter::new(config);
+        let mut rng = crate::testutil::Rng::new(7);
+        let start = [5.0, 3.0, 2.0];
+        let dt = 0.1;
+        let mut last = None;
+        for k in 0..100 {
+            let t = k as f64 * dt;
+            let moving = t >= 3.0;
+            let run = if moving { 1.5 * (t - 3.0) } else { 0.0 };
+            let pos = [start[0] + run * heading.cos(), start[1] + run * heading.sin(), start[2]];
+            let speed = AcousticSpeed {
+                horizontal: if moving { 1.5 } else { 0.0 },
+                horizontal_sigma: 0.2,
+                vertical: 0.0,
+                vertical_sigma: 0.05,
+                horizontal_accel: 0.0,
+                accelerating: false,
+            };
+            let step = Step {
+                t,
+                dt,
+                array: &array,
+                doa: Some(doa(t, pos, &mut rng)),
+                los: true,
+                motion: if moving { MotionClass::Horizontal } else { MotionClass::Hover },
+                speed,
+                room: None,
+            };
+            if let Some(est) = filter.step(&step) {
+                let err = crate::observation::norm([
+                    est.position[0] - pos[0],
+                    est.position[1] - pos[1],
+                    est.position[2] - pos[2],
+                ]);
+                last = Some((est.velocity[1].atan2(est.velocity[0]), err));
+            }
+        }
+        last.unwrap()
+    }
+
+    #[test]
+    fn a_leg_from_rest_finds_its_heading_whichever_it_is() {
+        // Eight legs around the compass, each started from a hover whose range the bearings
+        // cannot tell: the velocity must end along the leg and the position near the truth.
+        // A leg mostly straight away from the array shows its range only through the zenith's
+        // slow change, which the zenith-bias state partly absorbs: there only the heading is
+        // asserted (measured: 2.4–4.4 m off after 7 s for tangential fractions 0.3–0.46).
+        let outwards = 3.0f64.atan2(5.0);
+        for j in 0..8 {
+            let heading = std::f64::consts::TAU * (j as f64 + 0.3) / 8.0;
+            let (direction, err) = fly_leg(AimConfig::default(), heading);
+            let off = crate::observation::wrap_pi(direction - heading).abs();
+            assert!(off < 15f64.to_radians(), "leg {j}: heading off by {}°", off.to_degrees());
+            let tangential = crate::observation::wrap_pi(heading - outwards).sin().abs();
+            let receding = crate::observation::wrap_pi(heading - outwards).cos() > 0.0;
+            if tangential >= 0.5 || !receding {
+                assert!(err < 0.6, "leg {j}: position error {err} m");
+            }
+        }
+    }
+}

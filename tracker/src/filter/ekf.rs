@@ -261,6 +261,47 @@ mod tests {
     }
 
     #[test]
+    fn a_constant_zenith_offset_goes_into_the_bias_state() {
+        // The position is known tightly; every zenith reads 3° high: the offset must end up in
+        // the bias state, not move the position.
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let truth = [8.0, 3.0, 2.0];
+        let mut f = Ekf::new(
+            [truth[0], truth[1], truth[2], 0.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 0.1f64.powi(2)]),
+        );
+        let (az, zen) = angles_of(truth);
+        let offset = 3.0f64.to_radians();
+        for _ in 0..200 {
+            f.predict(0.1, [1e-6; 3], 20.0, 0.1);
+            f.update_bearing(&array, az, zen + offset, 0.01, 0.01).unwrap();
+        }
+        let b = f.x[ZENITH_BIAS];
+        assert!((b - offset).abs() < 0.2f64.to_radians(), "bias {}°", b.to_degrees());
+        let moved =
+            crate::observation::norm([f.x[0] - truth[0], f.x[1] - truth[1], f.x[2] - truth[2]]);
+        assert!(moved < 0.05, "position moved {moved} m");
+    }
+
+    #[test]
+    fn azimuth_update_leaves_the_range_alone() {
+        // An azimuth says nothing about range: after the update the position moves across
+        // the ray, its distance from the array almost unchanged.
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let mut f = Ekf::new(
+            [6.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-3]),
+        );
+        let range = |f: &Ekf| f.x[0].hypot(f.x[1]);
+        let before = range(&f);
+        let az = 10.0f64.to_radians();
+        f.update_azimuth(&array, az, 0.01).unwrap();
+        let after_az = f.x[1].atan2(f.x[0]);
+        assert!((after_az - az).abs() < 0.5f64.to_radians(), "{}", after_az.to_degrees());
+        assert!((range(&f) - before).abs() < 0.1, "{before} → {}", range(&f));
+    }
+
+    #[test]
     fn bearing_update_moves_towards_the_ray() {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut f = Ekf::new(
