@@ -21,6 +21,19 @@ use crate::wake::{WakeConfig, WakeSpeed};
 /// has not settled, m/s.
 const UNSETTLED_SPEED_SIGMA_MPS: f64 = 1.0;
 
+/// One BPF frame as the pipeline keeps it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct BpfFrame {
+    /// Time, s.
+    t: f64,
+    /// Σ BPF² over all rotors, Hz² (hover's for a yaw split).
+    sum_sq: f64,
+    /// Distinct rotor-speed groups heard (2 for a yaw split heard by one half).
+    groups: usize,
+    /// The groups are a yaw's odd/even split (see `TrackerConfig::yaw_split_hz`).
+    yaw_split: bool,
+}
+
 /// Tunables of the pipeline.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrackerConfig {
@@ -51,6 +64,13 @@ pub struct TrackerConfig {
     pub excess_window_s: f64,
     /// BPF frames are kept at least this long (with `excess_window_s` and `stale_s`), s.
     pub split_memory_s: f64,
+    /// A lone BPF group this far from hover, or two groups this far apart, are a yaw split,
+    /// not a thrust change, Hz: 8 Hz of a 328 Hz BPF is 5 % more thrust, an 18° tilt or
+    /// 3 m/s², beyond what the drone flies, and the wake split of cruise is ≈ 3 Hz, while a yaw
+    /// turns on ±4–8 % rotor-speed splits whose halves are often heard alone. Such a frame
+    /// counts as a split at hover thrust (a yaw keeps the total thrust; the DSP's estimates
+    /// of a changing split, smeared over a 0.5 s span, do not).
+    pub yaw_split_hz: f64,
 }
 
 impl Default for TrackerConfig {
@@ -69,6 +89,7 @@ impl Default for TrackerConfig {
             accel_sigmas: 3.0,
             excess_window_s: 0.8,
             split_memory_s: 0.5,
+            yaw_split_hz: 6.0,
         }
     }
 }
@@ -125,8 +146,8 @@ pub struct Tracker {
     array_index: usize,
     profile: Profile,
     window: DoaWindow,
-    /// Recent BPF frames: (t, Σ BPF², groups).
-    spectra: VecDeque<(f64, f64, usize)>,
+    /// Recent BPF frames.
+    spectra: VecDeque<BpfFrame>,
     classifier: MotionClassifier,
     calibration: HoverCalibration,
     speed: SpeedIntegrator,
@@ -274,11 +295,19 @@ impl Tracker {
             c.min_relative_amplitude,
             c.min_separation_hz,
         );
-        if let Some(sum) = sum_bpf_squared(&groups, self.profile.rotors()) {
-            self.spectra.push_back((s.t, sum, groups.len()));
+        let yaw_split = match groups.as_slice() {
+            [one] => (one.hz - reference).abs() >= c.yaw_split_hz,
+            [low, .., high] => high.hz - low.hz >= c.yaw_split_hz,
+            [] => false,
+        };
+        if yaw_split {
+            let sum_sq = self.calibration.hover_sum_sq();
+            self.spectra.push_back(BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split });
+        } else if let Some(sum_sq) = sum_bpf_squared(&groups, self.profile.rotors()) {
+            self.spectra.push_back(BpfFrame { t: s.t, sum_sq, groups: groups.len(), yaw_split });
         }
         let horizon = c.excess_window_s.max(c.split_memory_s) + c.stale_s;
-        while self.spectra.front().is_some_and(|f| f.0 < s.t - horizon) {
+        while self.spectra.front().is_some_and(|f| f.t < s.t - horizon) {
             self.spectra.pop_front();
         }
     }
@@ -292,17 +321,17 @@ impl Tracker {
             _ => None,
         };
         // BPF frames of the last `excess_window_s`: mean Σ BPF² (the acoustic speed's input).
-        let recent: Vec<&(f64, f64, usize)> = self
+        let recent: Vec<&BpfFrame> = self
             .spectra
             .iter()
-            .filter(|(ts, _, _)| {
-                *ts > t - c.excess_window_s
-                    && *ts <= t
-                    && t - ts <= c.stale_s.max(c.excess_window_s)
+            .filter(|f| {
+                f.t > t - c.excess_window_s
+                    && f.t <= t
+                    && t - f.t <= c.stale_s.max(c.excess_window_s)
             })
             .collect();
         let mean_sum_sq = (!recent.is_empty())
-            .then(|| recent.iter().map(|r| r.1).sum::<f64>() / recent.len() as f64);
+            .then(|| recent.iter().map(|r| r.sum_sq).sum::<f64>() / recent.len() as f64);
         let excess_significant = mean_sum_sq.is_some_and(|m| {
             let (e, _) = self.calibration.excess(m, 0.0);
             let sigma = self.calibration.rel_sigma() / (recent.len() as f64).sqrt();
@@ -314,9 +343,9 @@ impl Tracker {
         // so it does not move when the hover calibration does).
         let newest = self.classifier.latest_frame_t().unwrap_or(f64::NEG_INFINITY);
         let reference = self.profile.rotors() as f64 * self.profile.hover_bpf_hz().powi(2);
-        for &(ts, sum, groups) in self.spectra.iter().filter(|f| f.0 > newest && f.0 <= t) {
-            let excess = sum / reference - 1.0;
-            self.classifier.add_thrust(ThrustFrame { t: ts, excess, split: groups >= 2 });
+        for f in self.spectra.iter().filter(|f| f.t > newest && f.t <= t) {
+            let excess = f.sum_sq / reference - 1.0;
+            self.classifier.add_thrust(ThrustFrame { t: f.t, excess, split: f.groups >= 2 });
         }
         // The DoA trend over a short span follows starts and stops; the full window tells a
         // climb (zenith alone) from a sweep in azimuth.
@@ -325,7 +354,7 @@ impl Tracker {
         });
         let doa_cues = doa.zip(short).map(|(long, short)| DoaCues { long, short });
         let motion = self.classifier.update(t, doa_cues);
-        let groups = self.spectra.back().map_or(0, |s| s.2);
+        let groups = self.spectra.back().map_or(0, |s| s.groups);
         if motion == MotionClass::Hover && !excess_significant {
             self.hover_run_s += dt;
             if self.hover_run_s >= c.calibration_hover_s {
@@ -340,10 +369,13 @@ impl Tracker {
         if let Some(wake) = self.wake.as_mut() {
             if motion == MotionClass::Horizontal && self.calibration.is_calibrated() {
                 let hover = self.calibration.hover_sum_sq();
-                for &(ts, sum, _) in
-                    self.spectra.iter().filter(|f| f.0 > self.wake_last_t && f.0 <= t)
+                // A yaw split says nothing of the wake.
+                for f in self
+                    .spectra
+                    .iter()
+                    .filter(|f| f.t > self.wake_last_t && f.t <= t && !f.yaw_split)
                 {
-                    wake.push(ts, sum / hover - 1.0);
+                    wake.push(f.t, f.sum_sq / hover - 1.0);
                 }
                 if let Some((v, sigma)) = wake.estimate() {
                     speed.horizontal = v;
@@ -390,5 +422,85 @@ impl Tracker {
             motion,
             los,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::observation::{angles_of, Bearing, BpfPeak};
+    use crate::site::ArrayPose;
+
+    /// Classes of the fixes a hovering drone gets while it yaws on the spot: 6 s of hover,
+    /// then 1.5 s of odd/even split (±3.5 % rotor speed, total thrust kept) heard as the DSP
+    /// hears it — the upper half alone, the lower half alone, or both — then hover again.
+    fn classes_through_a_yaw(config: TrackerConfig) -> Vec<(f64, MotionClass)> {
+        let site = Site {
+            arrays: vec![ArrayPose::new(1, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0)],
+            room: None,
+            sample_rate_hz: None,
+        };
+        let profile = Profile::dji_mini_2();
+        let hover = profile.hover_bpf_hz();
+        let high = hover * 1.035;
+        let low = (2.0 * hover * hover - high * high).sqrt();
+        let mut tracker =
+            Tracker::new(site, profile, FilterKind::Aim, config).expect("valid tracker");
+        let mut rng = crate::testutil::Rng::new(9);
+        let (az, zen) = angles_of([6.0, 2.0, 2.0]);
+        let mut inputs = Vec::new();
+        for k in 0..60 {
+            let t = k as f64 * 0.17;
+            inputs.push(Input::Bearing(Bearing {
+                t,
+                array_id: 1,
+                azimuth_rad: az + 0.005 * rng.normal(),
+                zenith_rad: zen + 0.005 * rng.normal(),
+                residual: 0.2,
+                quality: 0.5,
+            }));
+        }
+        for k in 0..40 {
+            let t = k as f64 * 0.256;
+            let peak = |hz: f64| BpfPeak { hz, amplitude: 1.0 };
+            let peaks = if (6.0..7.5).contains(&t) {
+                match k % 3 {
+                    0 => vec![peak(high)],
+                    1 => vec![peak(low)],
+                    _ => vec![peak(high), peak(low)],
+                }
+            } else {
+                vec![peak(hover * (1.0 + 3e-4 * rng.normal()))]
+            };
+            inputs.push(Input::Spectrum(crate::observation::Spectrum { t, array_id: 1, peaks }));
+        }
+        inputs.sort_by(|a, b| a.t().total_cmp(&b.t()));
+        let mut fixes = Vec::new();
+        for input in inputs {
+            fixes.extend(tracker.push(input));
+        }
+        fixes.extend(tracker.flush());
+        fixes.into_iter().map(|f| (f.t, f.motion)).collect()
+    }
+
+    #[test]
+    fn a_yaw_split_is_a_yaw_not_a_thrust_change() {
+        let classes = classes_through_a_yaw(TrackerConfig::default());
+        let during: Vec<MotionClass> =
+            classes.iter().filter(|(t, _)| (6.5..7.5).contains(t)).map(|(_, c)| *c).collect();
+        assert!(!during.is_empty());
+        assert!(
+            during.iter().all(|c| *c == MotionClass::Yaw),
+            "classes during the yaw: {during:?}"
+        );
+        // Read as thrust, the lone halves (±7 % of Σ BPF²) would start a motion.
+        let as_thrust = classes_through_a_yaw(TrackerConfig {
+            yaw_split_hz: f64::INFINITY,
+            ..TrackerConfig::default()
+        });
+        assert!(
+            as_thrust.iter().any(|(_, c)| *c == MotionClass::Horizontal),
+            "the control run never moved"
+        );
     }
 }
