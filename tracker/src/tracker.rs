@@ -65,8 +65,8 @@ pub struct TrackerConfig {
     /// BPF frames are kept at least this long (with `excess_window_s` and `stale_s`), s.
     pub split_memory_s: f64,
     /// A lone BPF group this far from hover, or two groups this far apart, are a yaw split,
-    /// not a thrust change, Hz: 8 Hz of a 328 Hz BPF is 5 % more thrust, an 18° tilt or
-    /// 3 m/s², beyond what the drone flies, and the wake split of cruise is ≈ 3 Hz, while a yaw
+    /// not a thrust change, Hz: 6 Hz of a 328 Hz BPF is 3.7 % more thrust, a 16° tilt or
+    /// 2.7 m/s², beyond what the drone flies, and the wake split of cruise is 3–4 Hz, while a yaw
     /// turns on ±4–8 % rotor-speed splits whose halves are often heard alone. Such a frame
     /// counts as a split at hover thrust (a yaw keeps the total thrust; the DSP's estimates
     /// of a changing split, smeared over a 0.5 s span, do not).
