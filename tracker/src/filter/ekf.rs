@@ -113,6 +113,38 @@ impl Ekf {
         Some(-0.5 * (maha + det.ln() + m as f64 * (std::f64::consts::TAU).ln()))
     }
 
+    /// The predicted bearing (azimuth, zenith without the bias, rad, array frame) and its
+    /// Jacobian with respect to the position (central differences, 2×3).
+    fn predicted_bearing(&self, array: &ArrayPose) -> ((f64, f64), [[f64; 3]; 2]) {
+        let angles = |pos: [f64; 3]| {
+            let rel = [
+                pos[0] - array.position[0],
+                pos[1] - array.position[1],
+                pos[2] - array.position[2],
+            ];
+            angles_of(array.to_array(rel))
+        };
+        let pos = self.position();
+        let range = crate::observation::norm([
+            pos[0] - array.position[0],
+            pos[1] - array.position[1],
+            pos[2] - array.position[2],
+        ]);
+        let eps = 1e-4 * (1.0 + range);
+        let mut jacobian = [[0.0; 3]; 2];
+        for i in 0..3 {
+            let mut plus = pos;
+            let mut minus = pos;
+            plus[i] += eps;
+            minus[i] -= eps;
+            let (ap, zp) = angles(plus);
+            let (am, zm) = angles(minus);
+            jacobian[0][i] = wrap_pi(ap - am) / (2.0 * eps);
+            jacobian[1][i] = (zp - zm) / (2.0 * eps);
+        }
+        (angles(pos), jacobian)
+    }
+
     /// Bearing update: measured azimuth and zenith (rad, array frame) with standard deviations
     /// of their white parts; the measured zenith is the true one plus the bias state.
     pub fn update_bearing(
@@ -123,60 +155,24 @@ impl Ekf {
         sigma_az: f64,
         sigma_zen: f64,
     ) -> Option<f64> {
-        let predict = |pos: [f64; 3]| {
-            let rel = [
-                pos[0] - array.position[0],
-                pos[1] - array.position[1],
-                pos[2] - array.position[2],
-            ];
-            angles_of(array.to_array(rel))
-        };
-        let pos = self.position();
-        let (az0, zen0) = predict(pos);
-        let zen0 = zen0 + self.x[ZENITH_BIAS];
+        let ((az0, zen0), jacobian) = self.predicted_bearing(array);
         let mut h = Mat::zeros(2, STATE);
-        h[(1, ZENITH_BIAS)] = 1.0;
-        let eps = 1e-4
-            * (1.0
-                + crate::observation::norm([
-                    pos[0] - array.position[0],
-                    pos[1] - array.position[1],
-                    pos[2] - array.position[2],
-                ]));
         for i in 0..3 {
-            let mut plus = pos;
-            let mut minus = pos;
-            plus[i] += eps;
-            minus[i] -= eps;
-            let (ap, zp) = predict(plus);
-            let (am, zm) = predict(minus);
-            h[(0, i)] = wrap_pi(ap - am) / (2.0 * eps);
-            h[(1, i)] = (zp - zm) / (2.0 * eps);
+            h[(0, i)] = jacobian[0][i];
+            h[(1, i)] = jacobian[1][i];
         }
+        h[(1, ZENITH_BIAS)] = 1.0;
+        let zen0 = zen0 + self.x[ZENITH_BIAS];
         let r = Mat::diagonal(&[sigma_az * sigma_az, sigma_zen * sigma_zen]);
         self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)
     }
 
     /// Azimuth-only update (rad, array frame, standard deviation `sigma`).
     pub fn update_azimuth(&mut self, array: &ArrayPose, azimuth: f64, sigma: f64) -> Option<f64> {
-        let predict = |pos: [f64; 3]| {
-            let rel = [
-                pos[0] - array.position[0],
-                pos[1] - array.position[1],
-                pos[2] - array.position[2],
-            ];
-            angles_of(array.to_array(rel)).0
-        };
-        let pos = self.position();
-        let az0 = predict(pos);
+        let ((az0, _), jacobian) = self.predicted_bearing(array);
         let mut h = Mat::zeros(1, STATE);
-        let eps = 1e-4;
         for i in 0..3 {
-            let mut plus = pos;
-            let mut minus = pos;
-            plus[i] += eps;
-            minus[i] -= eps;
-            h[(0, i)] = wrap_pi(predict(plus) - predict(minus)) / (2.0 * eps);
+            h[(0, i)] = jacobian[0][i];
         }
         let r = Mat::diagonal(&[sigma * sigma]);
         self.update(&[azimuth], &[az0], &h, &r, Residual::AzimuthFirst)
