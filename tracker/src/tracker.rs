@@ -296,7 +296,11 @@ impl Tracker {
             c.min_separation_hz,
         );
         let yaw_split = match groups.as_slice() {
-            [one] => (one.hz - reference).abs() >= c.yaw_split_hz,
+            // Against the hover BPF only once a hover has calibrated it (the profile's may be
+            // off by more than the threshold).
+            [one] => {
+                self.calibration.is_calibrated() && (one.hz - reference).abs() >= c.yaw_split_hz
+            }
             [low, .., high] => high.hz - low.hz >= c.yaw_split_hz,
             [] => false,
         };
