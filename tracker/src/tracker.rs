@@ -370,6 +370,8 @@ impl Tracker {
             self.hover_run_s = 0.0;
         }
         let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
+        let mut cruise_speeds = Vec::new();
+        let mut wake_settled = false;
         if let Some(wake) = self.wake.as_mut() {
             if motion == MotionClass::Horizontal && self.calibration.is_calibrated() {
                 let hover = self.calibration.hover_sum_sq();
@@ -379,8 +381,11 @@ impl Tracker {
                     .iter()
                     .filter(|f| f.t > self.wake_last_t && f.t <= t && !f.yaw_split)
                 {
-                    wake.push(f.t, f.sum_sq / hover - 1.0);
+                    if let Some(frame_speed) = wake.push(f.t, f.sum_sq / hover - 1.0) {
+                        cruise_speeds.push(frame_speed);
+                    }
                 }
+                wake_settled = wake.settled();
                 if let Some((v, sigma)) = wake.estimate() {
                     speed.horizontal = v;
                     speed.horizontal_sigma = sigma;
@@ -411,6 +416,7 @@ impl Tracker {
             motion,
             speed,
             room: self.site.room,
+            cruise_speeds: wake_settled.then_some(cruise_speeds),
         };
         let est = self.filter.step(&step)?;
         let pc = &est.position_covariance;

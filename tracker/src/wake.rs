@@ -76,13 +76,14 @@ impl WakeSpeed {
         self.leg_start = None;
     }
 
-    /// Adds the excess ρ − 1 of a spectrum frame at time `t` (s) heard during the leg.
-    pub fn push(&mut self, t: f64, excess: f64) {
+    /// Adds the excess ρ − 1 of a spectrum frame at time `t` (s) heard during the leg and
+    /// returns that frame's speed and its standard deviation (m/s) once the leg has settled.
+    pub fn push(&mut self, t: f64, excess: f64) -> Option<(f64, f64)> {
         if !(t.is_finite() && excess.is_finite()) {
-            return;
+            return None;
         }
         if t - *self.leg_start.get_or_insert(t) < self.config.settle_s {
-            return;
+            return None;
         }
         if self.frames.len() >= self.config.min_frames {
             let mean = self.mean();
@@ -93,6 +94,12 @@ impl WakeSpeed {
         while self.frames.front().is_some_and(|f| f.0 < t - self.config.window_s) {
             self.frames.pop_front();
         }
+        Some(((excess / self.excess_per_mps).max(0.0), self.frame_sigma() / self.excess_per_mps))
+    }
+
+    /// True once the leg's first `settle_s` are over and frames are being averaged.
+    pub fn settled(&self) -> bool {
+        !self.frames.is_empty()
     }
 
     fn mean(&self) -> f64 {
@@ -130,8 +137,15 @@ mod tests {
         for k in 0..200 {
             // The first 1.5 s accelerate: their excess must not count.
             let e = if k < 6 { 0.05 } else { 0.015 + 0.01 * rng.normal() };
-            w.push(k as f64 * 0.25, e);
+            let frame = w.push(k as f64 * 0.25, e);
+            assert_eq!(frame.is_some(), k >= 6, "frame {k}: {frame:?}");
+            if let Some((v, sigma)) = frame {
+                // A frame's own speed: its excess over the coefficient, σ = frame spread / k.
+                assert!((v - (e / 0.01).max(0.0)).abs() < 1e-12);
+                assert!((sigma - w.frame_sigma() / 0.01).abs() < 1e-12);
+            }
         }
+        assert!(w.settled());
         let (v, sigma) = w.estimate().unwrap();
         // The window holds window/0.25 + 1 frames: σ of the mean = 1 %/√n per 1 %/(m/s).
         let c = WakeConfig::default();
@@ -141,7 +155,7 @@ mod tests {
         assert!((sigma - expected).abs() < 0.3 * expected, "{sigma} vs {expected}");
         assert!((v - 1.5).abs() < 3.0 * sigma, "{v} ± {sigma}");
         w.reset();
-        assert!(w.estimate().is_none());
+        assert!(w.estimate().is_none() && !w.settled());
     }
 
     #[test]

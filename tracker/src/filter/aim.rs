@@ -293,10 +293,22 @@ impl Filter for AimFilter {
                     ll += l;
                 }
             }
-            if step.motion == MotionClass::Horizontal && s.horizontal > 0.1 {
-                ll += f
-                    .update_horizontal_speed(s.horizontal, s.horizontal_sigma.max(0.05))
-                    .unwrap_or(0.0);
+            if step.motion == MotionClass::Horizontal {
+                match &step.cruise_speeds {
+                    // Frame by frame, each once: the leg mean would count every frame again at
+                    // every step.
+                    Some(frames) => {
+                        for &(v, sigma) in frames {
+                            ll += f.update_horizontal_speed(v, sigma.max(0.05)).unwrap_or(0.0);
+                        }
+                    }
+                    None if s.horizontal > 0.1 => {
+                        ll += f
+                            .update_horizontal_speed(s.horizontal, s.horizontal_sigma.max(0.05))
+                            .unwrap_or(0.0);
+                    }
+                    None => {}
+                }
             }
             if let Some(room) = step.room {
                 for i in 0..3 {
@@ -383,6 +395,7 @@ mod tests {
                 motion: if moving { MotionClass::Horizontal } else { MotionClass::Hover },
                 speed,
                 room: None,
+                cruise_speeds: None,
             };
             if let Some(est) = filter.step(&step) {
                 let err = crate::observation::norm([
