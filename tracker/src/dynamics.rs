@@ -56,14 +56,9 @@ pub fn yaw_acceleration(k_h: f64, blades: u32, i_z: f64, sum_odd_sq: f64, sum_ev
 /// In cruise the rotors downstream of the others lose a fraction `wake_loss_per_mps`·dᵢ·v of
 /// their thrust (dᵢ: how far downstream, per unit speed) and the controller makes it up by
 /// spinning them faster, so Σ BPF² rises by ρ − 1 ≈ (w v / N)·Σ dᵢ while the thrust stays
-/// m g. Inverting: v = (ρ − 1)·N / (w Σ dᵢ). `excess` is ρ − 1; `downstream_sum` is Σ dᵢ.
-pub fn speed_from_wake(
-    excess: f64,
-    rotors: usize,
-    wake_loss_per_mps: f64,
-    downstream_sum: f64,
-) -> Option<f64> {
-    let k = wake_loss_per_mps * downstream_sum / rotors as f64;
+/// m g. Inverting: v = (ρ − 1) / k with k = w Σ dᵢ / N
+/// ([`Profile::wake_excess_per_mps`]). `excess` is ρ − 1; `None` without a coefficient.
+pub fn speed_from_wake(excess: f64, k: f64) -> Option<f64> {
     (k > 0.0 && excess.is_finite()).then(|| (excess / k).max(0.0))
 }
 
@@ -331,9 +326,9 @@ mod tests {
         let p = Profile::dji_mini_2();
         let loss = 0.02 * std::f64::consts::FRAC_1_SQRT_2 * 1.5;
         let excess = (2.0 / (1.0 - loss) + 2.0) / 4.0 - 1.0;
-        let v = speed_from_wake(excess, 4, p.wake_loss_per_mps, p.downstream_sum()).unwrap();
+        let v = speed_from_wake(excess, p.wake_excess_per_mps()).unwrap();
         assert!((v - 1.5).abs() < 0.04, "{v}");
-        assert!(speed_from_wake(0.01, 4, 0.0, 1.4).is_none());
+        assert!(speed_from_wake(0.01, 0.0).is_none());
     }
 
     #[test]

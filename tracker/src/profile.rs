@@ -173,6 +173,12 @@ impl Profile {
             .sum()
     }
 
+    /// Thrust excess ρ − 1 of cruise per m/s of horizontal speed: w·Σ dᵢ / N (the wake model
+    /// of [`crate::dynamics::speed_from_wake`]); 0 without a wake coefficient.
+    pub fn wake_excess_per_mps(&self) -> f64 {
+        self.wake_loss_per_mps * self.downstream_sum() / self.rotors() as f64
+    }
+
     /// BPF of every rotor at hover with the profile's k_v, Hz: n·sqrt(m g / (N k_v)).
     pub fn hover_bpf_hz(&self) -> f64 {
         self.blades as f64 * (self.mass_kg * G / (self.rotors() as f64 * self.k_v)).sqrt()

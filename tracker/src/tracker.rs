@@ -205,10 +205,7 @@ impl Tracker {
             classifier: MotionClassifier::new(config.motion.clone()),
             calibration: HoverCalibration::new(&profile),
             speed: SpeedIntegrator::new(&profile),
-            wake: WakeSpeed::new(
-                WakeConfig::default(),
-                profile.wake_loss_per_mps * profile.downstream_sum() / profile.rotors() as f64,
-            ),
+            wake: WakeSpeed::new(WakeConfig::default(), profile.wake_excess_per_mps()),
             wake_last_t: f64::NEG_INFINITY,
             filter: new_filter(kind),
             config,

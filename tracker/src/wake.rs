@@ -94,7 +94,8 @@ impl WakeSpeed {
         while self.frames.front().is_some_and(|f| f.0 < t - self.config.window_s) {
             self.frames.pop_front();
         }
-        Some(((excess / self.excess_per_mps).max(0.0), self.frame_sigma() / self.excess_per_mps))
+        let speed = speed_from_wake(excess, self.excess_per_mps)?;
+        Some((speed, self.frame_sigma() / self.excess_per_mps))
     }
 
     /// True once the leg's first `settle_s` are over and frames are being averaged.
@@ -117,7 +118,7 @@ impl WakeSpeed {
         if n < self.config.min_frames {
             return None;
         }
-        let v = speed_from_wake(self.mean(), 1, self.excess_per_mps, 1.0)?;
+        let v = speed_from_wake(self.mean(), self.excess_per_mps)?;
         let sigma = self.frame_sigma() / (n as f64).sqrt() / self.excess_per_mps;
         Some((v, sigma.max(self.config.min_sigma_mps)))
     }
