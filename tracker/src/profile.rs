@@ -179,6 +179,16 @@ impl Profile {
         self.wake_loss_per_mps * self.downstream_sum() / self.rotors() as f64
     }
 
+    /// Relative BPF split f_rear / f_front − 1 of cruise per m/s: the rotors farthest
+    /// downstream (cos(π/N) for a flight nose-first between two arms) lose w·cos(π/N)·v of
+    /// their thrust and spin (1 − w·cos(π/N)·v)^(−½) times faster than the front ones for
+    /// the same thrust, ≈ w·cos(π/N)/2 per m/s; 0 without a wake coefficient. N is the rotor
+    /// count, one rotor per arm (a Y6's coaxial pairs are not modelled, as in
+    /// [`Self::downstream_sum`]).
+    pub fn wake_split_per_mps(&self) -> f64 {
+        self.wake_loss_per_mps * (std::f64::consts::PI / self.rotors() as f64).cos() / 2.0
+    }
+
     /// BPF of every rotor at hover with the profile's k_v, Hz: n·sqrt(m g / (N k_v)).
     pub fn hover_bpf_hz(&self) -> f64 {
         self.blades as f64 * (self.mass_kg * G / (self.rotors() as f64 * self.k_v)).sqrt()

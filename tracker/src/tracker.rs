@@ -7,7 +7,7 @@
 use std::collections::VecDeque;
 
 use crate::doa::{DoaConfig, DoaState, DoaWindow};
-use crate::dynamics::{sum_bpf_squared, HoverCalibration, SpeedIntegrator};
+use crate::dynamics::{sum_bpf_squared, AcousticSpeed, HoverCalibration, SpeedIntegrator};
 use crate::filter::{new_filter, Filter, FilterKind, Step};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
@@ -15,14 +15,14 @@ use crate::motion::{
 use crate::observation::{Input, Spectrum};
 use crate::profile::Profile;
 use crate::site::Site;
-use crate::wake::{WakeConfig, WakeSpeed};
+use crate::wake::{WakeConfig, WakeSpeed, WakeSplit};
 
 /// Standard deviation given to the integrated horizontal speed while the wake cue of a leg
 /// has not settled, m/s.
 const UNSETTLED_SPEED_SIGMA_MPS: f64 = 1.0;
 
 /// One BPF frame as the pipeline keeps it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 struct BpfFrame {
     /// Time, s.
     t: f64,
@@ -32,6 +32,8 @@ struct BpfFrame {
     groups: usize,
     /// The groups are a yaw's odd/even split (see `TrackerConfig::yaw_split_hz`).
     yaw_split: bool,
+    /// The groups' BPFs, Hz (empty for a yaw split).
+    hz: Vec<f64>,
 }
 
 /// Tunables of the pipeline.
@@ -153,7 +155,9 @@ pub struct Tracker {
     speed: SpeedIntegrator,
     /// Cruise speed from the wake excess (None without a wake coefficient).
     wake: Option<WakeSpeed>,
-    /// Time of the newest spectrum frame given to `wake`, s.
+    /// Cruise speed from the front/rear split (None without a wake coefficient).
+    split: Option<WakeSplit>,
+    /// Time of the newest spectrum frame given to `wake` and `split`, s.
     wake_last_t: f64,
     filter: Box<dyn Filter + Send>,
     next_output: Option<f64>,
@@ -206,6 +210,7 @@ impl Tracker {
             calibration: HoverCalibration::new(&profile),
             speed: SpeedIntegrator::new(&profile),
             wake: WakeSpeed::new(WakeConfig::default(), profile.wake_excess_per_mps()),
+            split: WakeSplit::new(WakeConfig::split(), profile.wake_split_per_mps()),
             wake_last_t: f64::NEG_INFINITY,
             filter: new_filter(kind),
             config,
@@ -282,6 +287,53 @@ impl Tracker {
         fixes
     }
 
+    /// Gives the spectrum frames heard since the previous output to the two wake cues during a
+    /// horizontal leg (resetting them otherwise); returns each new frame's speed and σ, m/s,
+    /// and whether a cue has settled. The leg's speed in `speed` becomes the inverse-variance
+    /// mean of the cues' leg estimates; before either has one, the integrated speed stays with
+    /// a σ of at least [`UNSETTLED_SPEED_SIGMA_MPS`].
+    fn wake_speeds(
+        &mut self,
+        t: f64,
+        motion: MotionClass,
+        speed: &mut AcousticSpeed,
+    ) -> (Vec<(f64, f64)>, bool) {
+        let since = std::mem::replace(&mut self.wake_last_t, t);
+        let leg = motion == MotionClass::Horizontal && self.calibration.is_calibrated();
+        if !leg {
+            self.wake.iter_mut().for_each(WakeSpeed::reset);
+            self.split.iter_mut().for_each(WakeSplit::reset);
+            return (Vec::new(), false);
+        }
+        let hover = self.calibration.hover_sum_sq();
+        let mut frames = Vec::new();
+        // A yaw split says nothing of the wake.
+        for f in self.spectra.iter().filter(|f| f.t > since && f.t <= t && !f.yaw_split) {
+            frames.extend(self.wake.as_mut().and_then(|w| w.push(f.t, f.sum_sq / hover - 1.0)));
+            frames.extend(self.split.as_mut().and_then(|w| w.push(f.t, &f.hz)));
+        }
+        let settled = self.wake.as_ref().is_some_and(WakeSpeed::settled)
+            || self.split.as_ref().is_some_and(WakeSplit::settled);
+        let estimates = [
+            self.wake.as_ref().and_then(WakeSpeed::estimate),
+            self.split.as_ref().and_then(WakeSplit::estimate),
+        ];
+        let (sum, weight) = estimates
+            .iter()
+            .flatten()
+            .fold((0.0, 0.0), |(s, w), (v, sigma)| (s + v / sigma.powi(2), w + sigma.powi(-2)));
+        if weight > 0.0 {
+            speed.horizontal = sum / weight;
+            speed.horizontal_sigma = weight.sqrt().recip();
+        } else {
+            // Before the wake is heard the integrated speed is all there is, and in flight it
+            // is poor: frame-to-frame scatter of the excess (≈ 1 %) is as large as the tilt of
+            // a 1 m/s² acceleration (0.5 %).
+            speed.horizontal_sigma = speed.horizontal_sigma.max(UNSETTLED_SPEED_SIGMA_MPS);
+        }
+        (frames, settled)
+    }
+
     fn add_spectrum(&mut self, s: &Spectrum) {
         let c = &self.config;
         let reference = (self.calibration.hover_sum_sq() / self.profile.rotors() as f64).sqrt();
@@ -303,9 +355,12 @@ impl Tracker {
         };
         if yaw_split {
             let sum_sq = self.calibration.hover_sum_sq();
-            self.spectra.push_back(BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split });
+            let frame = BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split, hz: Vec::new() };
+            self.spectra.push_back(frame);
         } else if let Some(sum_sq) = sum_bpf_squared(&groups, self.profile.rotors()) {
-            self.spectra.push_back(BpfFrame { t: s.t, sum_sq, groups: groups.len(), yaw_split });
+            let hz = groups.iter().map(|g| g.hz).collect();
+            let frame = BpfFrame { t: s.t, sum_sq, groups: groups.len(), yaw_split, hz };
+            self.spectra.push_back(frame);
         }
         let horizon = c.excess_window_s.max(c.split_memory_s) + c.stale_s;
         while self.spectra.front().is_some_and(|f| f.t < s.t - horizon) {
@@ -367,36 +422,7 @@ impl Tracker {
             self.hover_run_s = 0.0;
         }
         let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
-        let mut cruise_speeds = Vec::new();
-        let mut wake_settled = false;
-        if let Some(wake) = self.wake.as_mut() {
-            if motion == MotionClass::Horizontal && self.calibration.is_calibrated() {
-                let hover = self.calibration.hover_sum_sq();
-                // A yaw split says nothing of the wake.
-                for f in self
-                    .spectra
-                    .iter()
-                    .filter(|f| f.t > self.wake_last_t && f.t <= t && !f.yaw_split)
-                {
-                    if let Some(frame_speed) = wake.push(f.t, f.sum_sq / hover - 1.0) {
-                        cruise_speeds.push(frame_speed);
-                    }
-                }
-                wake_settled = wake.settled();
-                if let Some((v, sigma)) = wake.estimate() {
-                    speed.horizontal = v;
-                    speed.horizontal_sigma = sigma;
-                } else {
-                    // Before the wake is heard the integrated speed is all there is, and in
-                    // flight it is poor: frame-to-frame scatter of the excess (≈ 1 %) is as
-                    // large as the tilt of a 1 m/s² acceleration (0.5 %).
-                    speed.horizontal_sigma = speed.horizontal_sigma.max(UNSETTLED_SPEED_SIGMA_MPS);
-                }
-            } else {
-                wake.reset();
-            }
-            self.wake_last_t = t;
-        }
+        let (cruise_speeds, wake_settled) = self.wake_speeds(t, motion, &mut speed);
         let los = doa.is_some_and(|d| d.los);
         self.diagnostics.push(Diagnostics {
             doa,

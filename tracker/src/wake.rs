@@ -1,12 +1,21 @@
 //! Cruise speed from the wake: the rear rotors, working in the front rotors' wake, spin faster
-//! the faster the drone flies (paper §VII-C, ALGORITHMS.md §5), so the thrust excess
-//! ρ − 1 = Σ BPF² / Σ_hover − 1 grows with speed.
+//! the faster the drone flies (paper §VII-C, ALGORITHMS.md §5). Two cues come from it:
 //!
-//! One spectrum frame is a poor measurement of it: the DSP resolves the front and rear groups
-//! (≈ 1 % apart at 1.5 m/s) only some of the time, and a frame that hears one of them alone
-//! reads the excess of that group. So the estimate averages the frames of the current leg over
-//! a window, and its standard deviation comes from the frame-to-frame spread *measured in
-//! cruise* (a running estimate), not from the much smaller spread at hover.
+//! - [`WakeSpeed`], the thrust excess ρ − 1 = Σ BPF² / Σ_hover − 1. One spectrum frame is a
+//!   poor measurement of it: the DSP resolves the front and rear groups (≈ 1 % apart at
+//!   1.5 m/s) only some of the time, and a frame that hears one of them alone reads the excess
+//!   of that group; which group is heard depends on loudness and range, so the leg mean is
+//!   biased too (measured on square15-los: +0.7 m/s). It also needs the hover calibration and
+//!   carries the Doppler shift of the radial velocity (±0.9 % at 1.5 m/s).
+//! - [`WakeSplit`], the front/rear split f_rear / f_front − 1. The leg's group frequencies
+//!   are clustered into the two groups, and a frame's split is read against the other
+//!   cluster, so a frame hearing one group is not biased by which; a Doppler shift scales
+//!   both groups alike, and no hover calibration enters. Measured on square10-los, its frame
+//!   scatter is 0.5 m/s against the excess's 1.3 m/s.
+//!
+//! Each averages the frames of the current leg over a window, with a standard deviation from
+//! the frame-to-frame spread *measured in cruise* (a running estimate), and gives each frame's
+//! own speed once to the filter.
 
 use std::collections::VecDeque;
 
@@ -40,6 +49,14 @@ impl Default for WakeConfig {
             spread_gain: 0.05,
             min_sigma_mps: 0.1,
         }
+    }
+}
+
+impl WakeConfig {
+    /// Defaults for [`WakeSplit`]: a frame's relative split scatters by about 0.4 % (0.5 m/s
+    /// measured on square10-los, × 0.71 % per m/s), before cruise has taught it.
+    pub fn split() -> Self {
+        Self { initial_frame_sigma: 0.004, ..Self::default() }
     }
 }
 
@@ -124,9 +141,129 @@ impl WakeSpeed {
     }
 }
 
+/// Cruise speed from the front/rear split of the BPF groups (see the module documentation).
+#[derive(Clone, Debug)]
+pub struct WakeSplit {
+    config: WakeConfig,
+    /// Relative split per m/s ([`crate::profile::Profile::wake_split_per_mps`]).
+    split_per_mps: f64,
+    /// (time s, group BPFs Hz) of the current leg's frames.
+    frames: VecDeque<(f64, Vec<f64>)>,
+    /// Time of the leg's first frame, s.
+    leg_start: Option<f64>,
+    /// Running frame-to-frame variance of the relative split in cruise.
+    frame_var: f64,
+}
+
+impl WakeSplit {
+    /// An estimator for a drone whose relative split grows by `split_per_mps` per m/s; `None`
+    /// when the profile gives no wake coefficient (the cue is then unavailable).
+    pub fn new(config: WakeConfig, split_per_mps: f64) -> Option<Self> {
+        (split_per_mps > 0.0 && split_per_mps.is_finite()).then(|| Self {
+            frame_var: config.initial_frame_sigma.powi(2),
+            config,
+            split_per_mps,
+            frames: VecDeque::new(),
+            leg_start: None,
+        })
+    }
+
+    /// The leg is over (or has not begun): forget its frames.
+    pub fn reset(&mut self) {
+        self.frames.clear();
+        self.leg_start = None;
+    }
+
+    /// True once the leg's first `settle_s` are over and frames are being kept.
+    pub fn settled(&self) -> bool {
+        !self.frames.is_empty()
+    }
+
+    /// Centres (low, high) of the two groups over the leg's frames, Hz: two-means in one
+    /// dimension, started from the extremes. `None` until both groups have been heard.
+    fn clusters(&self) -> Option<(f64, f64)> {
+        let all = || self.frames.iter().flat_map(|f| f.1.iter().copied());
+        let (mut lo, mut hi) =
+            all().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), f| (l.min(f), h.max(f)));
+        if hi <= lo {
+            return None;
+        }
+        for _ in 0..32 {
+            let mid = 0.5 * (lo + hi);
+            let (mut low, mut high) = ((0.0, 0usize), (0.0, 0usize));
+            for f in all() {
+                let side = if f <= mid { &mut low } else { &mut high };
+                side.0 += f;
+                side.1 += 1;
+            }
+            let next = (low.0 / low.1 as f64, high.0 / high.1 as f64);
+            if next == (lo, hi) {
+                break;
+            }
+            (lo, hi) = next;
+        }
+        Some((lo, hi))
+    }
+
+    /// Relative split of one frame's groups against the clusters: the mean of each side it
+    /// heard, the other cluster's centre for a side it did not.
+    fn frame_split(groups: &[f64], (lo, hi): (f64, f64)) -> f64 {
+        let mid = 0.5 * (lo + hi);
+        let side_mean = |low: bool| {
+            let (sum, n) = groups
+                .iter()
+                .filter(|&&f| (f <= mid) == low)
+                .fold((0.0, 0usize), |(s, n), f| (s + f, n + 1));
+            (n > 0).then(|| sum / n as f64)
+        };
+        side_mean(false).unwrap_or(hi) / side_mean(true).unwrap_or(lo) - 1.0
+    }
+
+    /// Adds the BPF groups (Hz) of a spectrum frame at time `t` (s) heard during the leg and
+    /// returns that frame's speed and its standard deviation (m/s) once the leg has settled
+    /// and both groups have been heard.
+    pub fn push(&mut self, t: f64, groups: &[f64]) -> Option<(f64, f64)> {
+        if !t.is_finite()
+            || groups.is_empty()
+            || groups.iter().any(|f| !(f.is_finite() && *f > 0.0))
+        {
+            return None;
+        }
+        if t - *self.leg_start.get_or_insert(t) < self.config.settle_s {
+            return None;
+        }
+        self.frames.push_back((t, groups.to_vec()));
+        while self.frames.front().is_some_and(|f| f.0 < t - self.config.window_s) {
+            self.frames.pop_front();
+        }
+        if self.frames.len() < self.config.min_frames {
+            return None;
+        }
+        let clusters = self.clusters()?;
+        let split = Self::frame_split(groups, clusters);
+        let g = self.config.spread_gain;
+        let leg_split = clusters.1 / clusters.0 - 1.0;
+        self.frame_var += g * ((split - leg_split).powi(2) - self.frame_var);
+        Some((split / self.split_per_mps, self.frame_var.sqrt() / self.split_per_mps))
+    }
+
+    /// Horizontal speed of the leg and its standard deviation, m/s, once enough frames were
+    /// heard.
+    pub fn estimate(&self) -> Option<(f64, f64)> {
+        let n = self.frames.len();
+        if n < self.config.min_frames {
+            return None;
+        }
+        let (lo, hi) = self.clusters()?;
+        let sigma = self.frame_var.sqrt() / (n as f64).sqrt() / self.split_per_mps;
+        Some(((hi / lo - 1.0) / self.split_per_mps, sigma.max(self.config.min_sigma_mps)))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::profile::Profile;
 
     #[test]
     fn averages_the_leg_and_reports_the_measured_spread() {
@@ -162,5 +299,101 @@ mod tests {
     #[test]
     fn no_coefficient_no_cue() {
         assert!(WakeSpeed::new(WakeConfig::default(), 0.0).is_none());
+        assert!(WakeSplit::new(WakeConfig::split(), 0.0).is_none());
+    }
+
+    /// Frames of a leg at `v` m/s: front rotors at 328 Hz, rear ones `k`·v above, each frame
+    /// hearing the rear group alone (`rear_share` of the frames), the front alone, or both,
+    /// with 0.4 Hz of frequency noise and the whole frame scaled by `doppler`.
+    fn split_leg(
+        v: f64,
+        k: f64,
+        rear_share: f64,
+        doppler: impl Fn(usize) -> f64,
+    ) -> (WakeSplit, Vec<Option<(f64, f64)>>) {
+        let mut w = WakeSplit::new(WakeConfig::split(), k).unwrap();
+        let mut rng = crate::testutil::Rng::new(9);
+        let (front, rear) = (328.0, 328.0 * (1.0 + k * v));
+        let frames = (0..120)
+            .map(|i| {
+                let d = doppler(i);
+                let mut hz = |f: f64| d * (f + 0.4 * rng.normal());
+                let u = (i as f64 * 0.618_034).fract();
+                let groups = if i % 4 == 0 {
+                    vec![hz(front), hz(rear)]
+                } else if u < rear_share {
+                    vec![hz(rear)]
+                } else {
+                    vec![hz(front)]
+                };
+                w.push(i as f64 * 0.25, &groups)
+            })
+            .collect();
+        (w, frames)
+    }
+
+    #[test]
+    fn the_split_speed_does_not_depend_on_which_group_is_heard() {
+        // The excess of a frame hearing the rear group alone is twice the leg's, of one
+        // hearing the front alone zero: a leg mostly heard through its louder rear group
+        // reads fast. The split reads each frame against the other group, so the speed stays.
+        let k = Profile::dji_mini_2().wake_split_per_mps();
+        for rear_share in [0.2, 0.5, 0.8] {
+            let (w, frames) = split_leg(1.5, k, rear_share, |_| 1.0);
+            // Nothing before the leg settles (1.5 s: frames 0–5).
+            assert!(frames[..6].iter().all(Option::is_none), "{rear_share}");
+            assert!(frames[8..].iter().all(Option::is_some), "{rear_share}");
+            let (v, sigma) = w.estimate().unwrap();
+            assert!((v - 1.5).abs() < 3.0 * sigma, "share {rear_share}: {v} ± {sigma}");
+            // Frame speeds: unbiased, with the spread they report.
+            let speeds: Vec<(f64, f64)> = frames.iter().flatten().copied().collect();
+            let mean = speeds.iter().map(|s| s.0).sum::<f64>() / speeds.len() as f64;
+            let sd = (speeds.iter().map(|s| (s.0 - mean).powi(2)).sum::<f64>()
+                / (speeds.len() - 1) as f64)
+                .sqrt();
+            assert!((mean - 1.5).abs() < 0.15, "share {rear_share}: frame mean {mean}");
+            let reported = speeds.last().unwrap().1;
+            assert!((reported / sd - 1.0).abs() < 0.35, "reported {reported} vs spread {sd}");
+        }
+    }
+
+    #[test]
+    fn a_doppler_shift_scales_both_groups_and_leaves_the_split() {
+        // ±0.9 % Doppler, more than the 1 % excess at 1.5 m/s: the split speed does not move.
+        let k = Profile::dji_mini_2().wake_split_per_mps();
+        let (w, _) = split_leg(1.5, k, 0.5, |_| 1.009);
+        let (v_up, _) = w.estimate().unwrap();
+        let (w, _) = split_leg(1.5, k, 0.5, |_| 0.991);
+        let (v_down, sigma) = w.estimate().unwrap();
+        assert!((v_up - v_down).abs() < 0.01, "{v_up} vs {v_down}");
+        assert!((v_up - 1.5).abs() < 3.0 * sigma, "{v_up} ± {sigma}");
+        // Control: read as a thrust excess against the hover BPF, the +0.9 % shift alone would
+        // be 2.6 m/s of speed.
+        let excess = 1.009f64.powi(2) - 1.0;
+        let k_excess = Profile::dji_mini_2().wake_excess_per_mps();
+        assert!(excess / k_excess > 2.0, "{}", excess / k_excess);
+    }
+
+    #[test]
+    fn the_split_coefficient_is_the_wake_model() {
+        // Quad X, 2 % loss per m/s, nose-first between arms: the two rear rotors sit 0.707
+        // downstream; for equal thrust they spin (1 − 0.02·0.707·1.5)^(−½) times faster.
+        let p = Profile::dji_mini_2();
+        let ratio = (1.0 - 0.02 * std::f64::consts::FRAC_1_SQRT_2 * 1.5).powf(-0.5);
+        let v = (ratio - 1.0) / p.wake_split_per_mps();
+        // The coefficient is the linear term: the second-order one reads 1.6 % fast here.
+        assert!((v - 1.5).abs() < 0.04, "{v}");
+    }
+
+    #[test]
+    fn one_group_alone_gives_no_split() {
+        // A leg that never resolves two groups (or hears nothing usable) says nothing.
+        let mut w = WakeSplit::new(WakeConfig::split(), 0.007).unwrap();
+        for i in 0..40 {
+            assert!(w.push(i as f64 * 0.25, &[328.0]).is_none());
+            assert!(w.push(i as f64 * 0.25 + 0.1, &[f64::NAN]).is_none());
+            assert!(w.push(i as f64 * 0.25 + 0.2, &[]).is_none());
+        }
+        assert!(w.estimate().is_none());
     }
 }
