@@ -54,9 +54,10 @@ pub struct Step<'a> {
     pub speed: AcousticSpeed,
     /// The flight volume, if the site gives it.
     pub room: Option<Room>,
-    /// Once the leg's wake cue has settled: the horizontal speed of each cruise BPF frame heard
-    /// since the previous step, with its standard deviation (m/s), each frame given once (the
-    /// leg mean in `speed` re-uses every frame at every step). `None` before it settles.
+    /// Once a wake cue of the leg has settled: the horizontal speeds read from the cruise BPF
+    /// frames heard since the previous step, one per frame and cue (thrust excess, front/rear
+    /// split; see [`crate::wake`]), with standard deviations (m/s), each given once (the leg
+    /// mean in `speed` re-uses every frame at every step). `None` before either settles.
     pub cruise_speeds: Option<Vec<(f64, f64)>>,
 }
 
