@@ -60,37 +60,97 @@ impl WakeConfig {
     }
 }
 
+/// The bookkeeping both cues share: the current leg's frames after its settling time, within
+/// the window, and the running frame-to-frame variance of the cue in cruise.
+#[derive(Clone, Debug)]
+struct LegFrames<T> {
+    config: WakeConfig,
+    /// (time s, frame) of the current leg.
+    frames: VecDeque<(f64, T)>,
+    /// Time of the leg's first frame, s.
+    leg_start: Option<f64>,
+    /// Running frame-to-frame variance of the cue.
+    frame_var: f64,
+}
+
+impl<T> LegFrames<T> {
+    fn new(config: WakeConfig) -> Self {
+        Self {
+            frame_var: config.initial_frame_sigma.powi(2),
+            config,
+            frames: VecDeque::new(),
+            leg_start: None,
+        }
+    }
+
+    fn reset(&mut self) {
+        self.frames.clear();
+        self.leg_start = None;
+    }
+
+    /// True once the leg's first `settle_s` are over and frames are being kept.
+    fn settled(&self) -> bool {
+        !self.frames.is_empty()
+    }
+
+    /// Whether a frame at `t` (s) is past the leg's settling time; the first frame starts
+    /// the leg.
+    fn past_settling(&mut self, t: f64) -> bool {
+        t - *self.leg_start.get_or_insert(t) >= self.config.settle_s
+    }
+
+    /// Keeps a frame and drops those older than the window.
+    fn keep(&mut self, t: f64, frame: T) {
+        self.frames.push_back((t, frame));
+        while self.frames.front().is_some_and(|f| f.0 < t - self.config.window_s) {
+            self.frames.pop_front();
+        }
+    }
+
+    /// Enough frames for a leg estimate.
+    fn enough(&self) -> bool {
+        self.frames.len() >= self.config.min_frames
+    }
+
+    /// Adds a frame's deviation from the leg's value to the running variance.
+    fn learn_spread(&mut self, deviation: f64) {
+        self.frame_var += self.config.spread_gain * (deviation.powi(2) - self.frame_var);
+    }
+
+    fn frame_sigma(&self) -> f64 {
+        self.frame_var.sqrt()
+    }
+
+    /// Standard deviation of the leg mean in m/s for a cue of `per_mps` per m/s, floored at
+    /// `min_sigma_mps`; `None` before enough frames.
+    fn mean_sigma_mps(&self, per_mps: f64) -> Option<f64> {
+        let n = self.frames.len();
+        self.enough().then(|| {
+            (self.frame_sigma() / (n as f64).sqrt() / per_mps).max(self.config.min_sigma_mps)
+        })
+    }
+}
+
 /// Speed from the wake excess of one horizontal leg.
 #[derive(Clone, Debug)]
 pub struct WakeSpeed {
-    config: WakeConfig,
     /// Excess per m/s: wake loss × Σ downstream / N.
     excess_per_mps: f64,
-    /// (time s, excess) of the current leg's frames.
-    frames: VecDeque<(f64, f64)>,
-    /// Time of the leg's first frame, s.
-    leg_start: Option<f64>,
-    /// Running frame-to-frame variance of the excess in cruise.
-    frame_var: f64,
+    /// The leg's excess frames.
+    leg: LegFrames<f64>,
 }
 
 impl WakeSpeed {
     /// An estimator for a drone whose excess grows by `excess_per_mps` per m/s; `None` when
     /// the profile gives no wake coefficient (the cue is then unavailable).
     pub fn new(config: WakeConfig, excess_per_mps: f64) -> Option<Self> {
-        (excess_per_mps > 0.0 && excess_per_mps.is_finite()).then(|| Self {
-            frame_var: config.initial_frame_sigma.powi(2),
-            config,
-            excess_per_mps,
-            frames: VecDeque::new(),
-            leg_start: None,
-        })
+        (excess_per_mps > 0.0 && excess_per_mps.is_finite())
+            .then(|| Self { excess_per_mps, leg: LegFrames::new(config) })
     }
 
     /// The leg is over (or has not begun): forget its frames.
     pub fn reset(&mut self) {
-        self.frames.clear();
-        self.leg_start = None;
+        self.leg.reset();
     }
 
     /// Adds the excess ρ − 1 of a spectrum frame at time `t` (s) heard during the leg and
@@ -99,90 +159,71 @@ impl WakeSpeed {
         if !(t.is_finite() && excess.is_finite()) {
             return None;
         }
-        if t - *self.leg_start.get_or_insert(t) < self.config.settle_s {
+        if !self.leg.past_settling(t) {
             return None;
         }
-        if self.frames.len() >= self.config.min_frames {
-            let mean = self.mean();
-            let g = self.config.spread_gain;
-            self.frame_var += g * ((excess - mean).powi(2) - self.frame_var);
+        if self.leg.enough() {
+            let deviation = excess - self.mean();
+            self.leg.learn_spread(deviation);
         }
-        self.frames.push_back((t, excess));
-        while self.frames.front().is_some_and(|f| f.0 < t - self.config.window_s) {
-            self.frames.pop_front();
-        }
+        self.leg.keep(t, excess);
         let speed = speed_from_wake(excess, self.excess_per_mps)?;
         Some((speed, self.frame_sigma() / self.excess_per_mps))
     }
 
     /// True once the leg's first `settle_s` are over and frames are being averaged.
     pub fn settled(&self) -> bool {
-        !self.frames.is_empty()
+        self.leg.settled()
     }
 
     fn mean(&self) -> f64 {
-        self.frames.iter().map(|f| f.1).sum::<f64>() / self.frames.len().max(1) as f64
+        let frames = &self.leg.frames;
+        frames.iter().map(|f| f.1).sum::<f64>() / frames.len().max(1) as f64
     }
 
     /// Frame-to-frame standard deviation of the excess measured so far.
     pub fn frame_sigma(&self) -> f64 {
-        self.frame_var.sqrt()
+        self.leg.frame_sigma()
     }
 
     /// Horizontal speed and its standard deviation, m/s, once enough frames were heard.
     pub fn estimate(&self) -> Option<(f64, f64)> {
-        let n = self.frames.len();
-        if n < self.config.min_frames {
-            return None;
-        }
-        let v = speed_from_wake(self.mean(), self.excess_per_mps)?;
-        let sigma = self.frame_sigma() / (n as f64).sqrt() / self.excess_per_mps;
-        Some((v, sigma.max(self.config.min_sigma_mps)))
+        let sigma = self.leg.mean_sigma_mps(self.excess_per_mps)?;
+        Some((speed_from_wake(self.mean(), self.excess_per_mps)?, sigma))
     }
 }
 
 /// Cruise speed from the front/rear split of the BPF groups (see the module documentation).
 #[derive(Clone, Debug)]
 pub struct WakeSplit {
-    config: WakeConfig,
     /// Relative split per m/s ([`crate::profile::Profile::wake_split_per_mps`]).
     split_per_mps: f64,
-    /// (time s, group BPFs Hz) of the current leg's frames.
-    frames: VecDeque<(f64, Vec<f64>)>,
-    /// Time of the leg's first frame, s.
-    leg_start: Option<f64>,
-    /// Running frame-to-frame variance of the relative split in cruise.
-    frame_var: f64,
+    /// The leg's frames (group BPFs, Hz); the spread is that of the relative split.
+    leg: LegFrames<Vec<f64>>,
 }
 
 impl WakeSplit {
     /// An estimator for a drone whose relative split grows by `split_per_mps` per m/s; `None`
     /// when the profile gives no wake coefficient (the cue is then unavailable).
     pub fn new(config: WakeConfig, split_per_mps: f64) -> Option<Self> {
-        (split_per_mps > 0.0 && split_per_mps.is_finite()).then(|| Self {
-            frame_var: config.initial_frame_sigma.powi(2),
-            config,
-            split_per_mps,
-            frames: VecDeque::new(),
-            leg_start: None,
-        })
+        (split_per_mps > 0.0 && split_per_mps.is_finite())
+            .then(|| Self { split_per_mps, leg: LegFrames::new(config) })
     }
 
     /// The leg is over (or has not begun): forget its frames.
     pub fn reset(&mut self) {
-        self.frames.clear();
-        self.leg_start = None;
+        self.leg.reset();
     }
 
     /// True once the leg's first `settle_s` are over and frames are being kept.
     pub fn settled(&self) -> bool {
-        !self.frames.is_empty()
+        self.leg.settled()
     }
 
     /// Centres (low, high) of the two groups over the leg's frames, Hz: two-means in one
     /// dimension, started from the extremes. `None` until both groups have been heard.
     fn clusters(&self) -> Option<(f64, f64)> {
-        let all = || self.frames.iter().flat_map(|f| f.1.iter().copied());
+        let all = || self.leg.frames.iter().flat_map(|f| f.1.iter().copied());
         let (mut lo, mut hi) =
             all().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), f| (l.min(f), h.max(f)));
         if hi <= lo {
@@ -229,34 +270,25 @@ impl WakeSplit {
         {
             return None;
         }
-        if t - *self.leg_start.get_or_insert(t) < self.config.settle_s {
+        if !self.leg.past_settling(t) {
             return None;
         }
-        self.frames.push_back((t, groups.to_vec()));
-        while self.frames.front().is_some_and(|f| f.0 < t - self.config.window_s) {
-            self.frames.pop_front();
-        }
-        if self.frames.len() < self.config.min_frames {
+        self.leg.keep(t, groups.to_vec());
+        if !self.leg.enough() {
             return None;
         }
         let clusters = self.clusters()?;
         let split = Self::frame_split(groups, clusters);
-        let g = self.config.spread_gain;
-        let leg_split = clusters.1 / clusters.0 - 1.0;
-        self.frame_var += g * ((split - leg_split).powi(2) - self.frame_var);
-        Some((split / self.split_per_mps, self.frame_var.sqrt() / self.split_per_mps))
+        self.leg.learn_spread(split - (clusters.1 / clusters.0 - 1.0));
+        Some((split / self.split_per_mps, self.leg.frame_sigma() / self.split_per_mps))
     }
 
     /// Horizontal speed of the leg and its standard deviation, m/s, once enough frames were
     /// heard.
     pub fn estimate(&self) -> Option<(f64, f64)> {
-        let n = self.frames.len();
-        if n < self.config.min_frames {
-            return None;
-        }
+        let sigma = self.leg.mean_sigma_mps(self.split_per_mps)?;
         let (lo, hi) = self.clusters()?;
-        let sigma = self.frame_var.sqrt() / (n as f64).sqrt() / self.split_per_mps;
-        Some(((hi / lo - 1.0) / self.split_per_mps, sigma.max(self.config.min_sigma_mps)))
+        Some(((hi / lo - 1.0) / self.split_per_mps, sigma))
     }
 }
 
