@@ -99,7 +99,8 @@ pub use crc32::crc32;
 pub use deframe::{decode, DecodeError, Deframer, Feed, LinkStats, DEFAULT_CAPACITY};
 pub use encode::{encode, EncodeError, Encoder};
 pub use frame::{
-    reserved, Body, Doa, Frame, Header, Health, Hello, Kind, Peak, Peaks, MAX_MICS, MAX_PEAKS,
+    derived_array_id, reserved, Body, Doa, Frame, Header, Health, Hello, Kind, Peak, Peaks,
+    ResetCause, MAX_MICS, MAX_PANIC_MESSAGE, MAX_PEAKS, UNIQUE_ID_LEN,
 };
 
 /// First byte of every raw frame.
