@@ -6,7 +6,7 @@
 //! `health_interval_blocks` blocks (about 1 per second at 48 kHz). A `Doa` is left out when
 //! fewer than two pairs, spanning the plane, carry a coherent peak (silence, a single tone).
 //!
-//! Memory is fixed: `size_of::<Pipeline>()` is about 116 KB on the Cortex-M4F (the
+//! Memory is fixed: `size_of::<Pipeline>()` is 116 040 bytes on the Cortex-M4F (the
 //! `memory_budget` test keeps it ≤ 128 KiB), all of it in the struct, nothing on the heap and
 //! only small temporaries on the stack (904 bytes deep for `push`). The
 //! struct is `const`-constructible ([`Pipeline::empty`]) so the firmware can place it in a
@@ -147,7 +147,7 @@ impl Pipeline {
         }
     }
 
-    /// A configured pipeline by value (about 116 KB: prefer [`Pipeline::empty`] +
+    /// A configured pipeline by value (116 040 bytes: prefer [`Pipeline::empty`] +
     /// [`Pipeline::configure`] in place on small stacks).
     pub fn new(config: &Config) -> Result<Self, ConfigError> {
         let mut p = Self::empty();
