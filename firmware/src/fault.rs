@@ -31,6 +31,13 @@ pub const MESSAGE_LEN: usize = aim_wire::MAX_PANIC_MESSAGE;
 /// Size of the MPU stack guard region, bytes (the smallest region of the ARMv7-M MPU).
 pub const STACK_GUARD_BYTES: u32 = 32;
 
+/// The guard's size as a symbol in the image, for a check of the ELF: an image that installs
+/// the guard has `AIM_STACK_GUARD_BYTES` (= 32; the guard itself is
+/// `[align_up(_stack_end, 32), + 32)`, set up at run time by [`install_stack_guard`]).
+#[used]
+#[unsafe(no_mangle)]
+pub static AIM_STACK_GUARD_BYTES: u32 = STACK_GUARD_BYTES;
+
 /// Magic word of a valid [`Retained`] cell: "AIM" and the layout version 1.
 const MAGIC: u32 = 0x4149_4d01;
 
@@ -296,6 +303,10 @@ pub fn install_stack_guard(mpu: &mut cortex_m::peripheral::MPU) {
     const RASR_AP_NONE: u32 = 0 << 24;
     const RASR_XN: u32 = 1 << 28;
     let base = stack_guard_base();
+    // Keeps the marker symbol in the image (and reads it, so the two cannot disagree).
+    // SAFETY: a plain read of an immutable static (volatile: a real reference to it).
+    let size = unsafe { core::ptr::read_volatile(core::ptr::addr_of!(AIM_STACK_GUARD_BYTES)) };
+    debug_assert_eq!(size, STACK_GUARD_BYTES);
     cortex_m::asm::dsb();
     // SAFETY: region 0 is the only region; it covers 32 bytes no code or data uses (between
     // the last static and the stack in use, which is far above at start-up).
