@@ -3,8 +3,8 @@
 mod common;
 
 use aim_wire::{
-    decode, reserved, Body, DecodeError, Deframer, Frame, Kind, LinkStats, MAX_ENCODED_LEN,
-    MAX_RAW_LEN, PROTOCOL_VERSION,
+    decode, reserved, Body, DecodeError, Deframer, Frame, Kind, LinkStats, ResetCause,
+    MAX_ENCODED_LEN, MAX_RAW_LEN, PROTOCOL_VERSION,
 };
 use common::{raw, reframe, sample_frames, strip_crc, wire, worst_case};
 use proptest::prelude::*;
@@ -38,8 +38,12 @@ fn discriminants_are_pinned() {
 fn max_encoded_size_per_kind() {
     // Declared worst cases (computed by hand in `Kind::max_payload_len`) against real encodings
     // of frames with every varint at its widest.
-    let expected =
-        [(Kind::Hello, 80, 83), (Kind::Doa, 36, 39), (Kind::Peaks, 67, 70), (Kind::Health, 50, 53)];
+    let expected = [
+        (Kind::Hello, 147, 150),
+        (Kind::Doa, 36, 39),
+        (Kind::Peaks, 67, 70),
+        (Kind::Health, 95, 98),
+    ];
     for (kind, raw_len, wire_len) in expected {
         let frame = worst_case(kind);
         assert_eq!(raw(&frame).len(), raw_len, "{kind:?} raw");
@@ -47,8 +51,8 @@ fn max_encoded_size_per_kind() {
         assert_eq!(kind.max_raw_len(), raw_len, "{kind:?} declared raw");
         assert_eq!(kind.max_encoded_len(), wire_len, "{kind:?} declared wire");
     }
-    assert_eq!(MAX_RAW_LEN, 80);
-    assert_eq!(MAX_ENCODED_LEN, 83);
+    assert_eq!(MAX_RAW_LEN, 147);
+    assert_eq!(MAX_ENCODED_LEN, 150);
 }
 
 const GOLDEN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden");
@@ -90,6 +94,99 @@ fn golden_bytes_of_every_kind() {
     for kind in Kind::ALL {
         assert!(seen.contains(&kind), "no golden snapshot of {kind:?}");
     }
+}
+
+#[test]
+fn hello_and_health_of_older_firmware_decode_with_the_appended_fields_at_their_defaults() {
+    // Rule 3, the other way: `*-base.hex` are the snapshots of the frames before the start-up
+    // fields (Hello) and the loss counters (Health) were appended, bytes as older firmware
+    // sends them.
+    let frames = sample_frames();
+    for (name, index) in [("hello", 0), ("health", 3)] {
+        let path = format!("{GOLDEN_DIR}/{name}-sample-base.hex");
+        let golden = std::fs::read_to_string(&path).unwrap();
+        let mut deframer: Deframer = Deframer::new();
+        let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+        let mut expected = frames[index].clone();
+        match &mut expected.body {
+            Body::Hello(h) => {
+                let positions = h.mic_positions_decimm.clone();
+                *h = aim_wire::Hello {
+                    firmware_version: h.firmware_version,
+                    sample_rate_hz: h.sample_rate_hz,
+                    block_len: h.block_len,
+                    mic_positions_decimm: positions,
+                    ..Default::default()
+                };
+                assert_eq!(h.reset_cause(), Some(ResetCause::Unknown));
+            }
+            Body::Health(h) => {
+                *h = aim_wire::Health {
+                    blocks: h.blocks,
+                    clipped_samples: h.clipped_samples,
+                    peak_ddbfs: h.peak_ddbfs,
+                    block_exponent: h.block_exponent,
+                    cycles_per_block: h.cycles_per_block,
+                    dma_overruns: h.dma_overruns,
+                    dropped_frames: h.dropped_frames,
+                    queue_depth: h.queue_depth,
+                    ..Default::default()
+                };
+            }
+            _ => unreachable!(),
+        }
+        assert_eq!(decoded, [Ok(expected)], "{path}");
+    }
+    // A payload cut inside the appended fields is malformed, not silently defaulted.
+    let body = strip_crc(&raw(&frames[0])).to_vec();
+    let (out, _) = deframe_all(&reframe(&body[..body.len() - 10]));
+    assert_eq!(out, [Err(DecodeError::Payload(Some(Kind::Hello)))]);
+}
+
+#[test]
+fn reset_causes_are_pinned_and_the_panic_message_is_cut_at_a_character() {
+    let codes: Vec<(u8, &str)> = ResetCause::ALL.iter().map(|c| (c.code(), c.name())).collect();
+    assert_eq!(
+        codes,
+        [
+            (0, "unknown"),
+            (1, "power-on"),
+            (2, "pin"),
+            (3, "brown-out"),
+            (4, "software"),
+            (5, "watchdog"),
+            (6, "window-watchdog"),
+            (7, "low-power"),
+            (8, "panic"),
+            (9, "fault"),
+        ]
+    );
+    assert_eq!(ResetCause::from_code(10), None);
+    let mut hello = aim_wire::Hello::default();
+    // 47 ASCII bytes and a 2-byte character: the character does not fit and is left out.
+    let message = format!("{}é", "x".repeat(47));
+    hello.set_panic_message(&message);
+    assert_eq!(hello.panic_message.as_str(), &message[..47]);
+    hello.set_panic_message("short");
+    assert_eq!(hello.panic_message.as_str(), "short");
+}
+
+#[test]
+fn derived_array_ids_are_in_range_and_follow_the_crc() {
+    // Oracle: the published CRC-32/ISO-HDLC of these 12 bytes, computed independently with
+    // Python's zlib.crc32(b"123456789abc") = 0xBDB0C0E4 (3182477540): 3182477540 mod 255 = 20.
+    let uid = *b"123456789abc";
+    assert_eq!(aim_wire::crc32(&uid), 0xBDB0_C0E4);
+    assert_eq!(aim_wire::derived_array_id(&uid), 21);
+    // Every id in 1..=255 is reachable and 0 never comes out, over many unique IDs.
+    let mut seen = [false; 256];
+    let mut rng = common::Rng::new(1);
+    for _ in 0..20_000 {
+        let uid: [u8; 12] = core::array::from_fn(|_| rng.byte());
+        seen[usize::from(aim_wire::derived_array_id(&uid))] = true;
+    }
+    assert!(!seen[0]);
+    assert!(seen[1..].iter().all(|&s| s));
 }
 
 #[test]

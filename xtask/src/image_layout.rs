@@ -15,9 +15,10 @@
 //! - `.data`, `.bss` and the stack in DTCM (the fastest RAM, not reachable by DMA1/DMA2);
 //! - every DMA buffer (`.axisram`, see `firmware/src/dma_buffer.rs`) in D1 (AXI) or D2 SRAM,
 //!   the RAMs DMA1/DMA2 reach;
-//! - a stack guard: flip-link's layout, the stack placed *below* `.data`/`.bss` at the bottom
-//!   of DTCM, so that an overflow runs off the start of RAM into a bus fault instead of
-//!   silently overwriting statics;
+//! - a stack guard: the firmware's MPU guard region (`firmware/src/fault.rs`: the image holds
+//!   the marker symbol `AIM_STACK_GUARD_BYTES`, and the guard `[align_up(_stack_end, 32), +32)`
+//!   lies in DTCM above every static and below the initial stack pointer), so that an overflow
+//!   faults instead of silently overwriting the statics;
 //! - every allocated section inside one region, every loaded byte stored in flash.
 use std::ops::Range;
 
@@ -58,6 +59,9 @@ pub const STM32H743: [Region; 8] = [
     Region { name: "SYSTEM", start: 0x1FF0_0000, len: 0x2_0000 },
 ];
 
+/// Size of the firmware's MPU stack guard region, bytes (`aim_firmware::fault::STACK_GUARD_BYTES`).
+const GUARD_BYTES: u64 = 32;
+
 fn region(name: &str) -> Region {
     *STM32H743.iter().find(|r| r.name == name).expect("a region of STM32H743")
 }
@@ -97,6 +101,10 @@ pub struct Image {
     pub data: Range<u64>,
     /// `__sidata`: where `.data`'s initial values are stored.
     pub sidata: u64,
+    /// `_stack_end`: the end of the statics, where the stack's lowest address may be.
+    pub stack_end: u64,
+    /// The image holds `AIM_STACK_GUARD_BYTES`, the marker of the firmware's MPU stack guard.
+    pub stack_guard: bool,
     /// Allocated sections with a size: name and address range.
     pub sections: Vec<(String, Range<u64>)>,
     /// `PT_LOAD` segments with file contents: physical (load) address range.
@@ -155,6 +163,8 @@ pub fn read(elf_bytes: &[u8]) -> Result<Image> {
         bss: symbol("__sbss")?..symbol("__ebss")?,
         data: symbol("__sdata")?..symbol("__edata")?,
         sidata: symbol("__sidata")?,
+        stack_end: symbol("_stack_end")?,
+        stack_guard: symbol("AIM_STACK_GUARD_BYTES").is_ok(),
         sections,
         loads,
     })
@@ -231,20 +241,32 @@ pub fn rules(image: &Image) -> Report {
         format!("the load image of .data {} is not inside flash", hex(&data_load)),
     );
 
-    // Stack guard: flip-link puts the stack at the bottom of DTCM, under the statics.
-    let statics_start = data.start.min(bss.start);
+    // Stack guard: the firmware's MPU region of 32 bytes at `_stack_end` rounded up to 32,
+    // between the statics and the stack (`firmware/src/fault.rs`).
+    let guard_base = (image.stack_end + GUARD_BYTES - 1) & !(GUARD_BYTES - 1);
+    let guard = guard_base..guard_base + GUARD_BYTES;
+    let statics_end = bss.end.max(data.end);
     rule(
-        initial_sp <= statics_start,
+        image.stack_guard
+            && dtcm.contains(&guard)
+            && guard.start >= statics_end
+            && guard.end < initial_sp,
         format!(
-            "stack guard: stack {:#010x}..{initial_sp:#010x} below the statics (flip-link), \
-             an overflow faults at the start of DTCM",
-            dtcm.start
+            "stack guard {} (MPU, 32 bytes) between the statics (end {statics_end:#010x}) and \
+             the stack (top {initial_sp:#010x})",
+            hex(&guard)
         ),
-        format!(
-            "no stack guard: the initial SP {initial_sp:#010x} lies above the statics \
-             (from {statics_start:#010x}), so an overflow overwrites them silently \
-             (link with flip-link)"
-        ),
+        if image.stack_guard {
+            format!(
+                "the stack guard {} is not in DTCM between the statics (end {statics_end:#010x}) \
+                 and the initial SP {initial_sp:#010x}",
+                hex(&guard)
+            )
+        } else {
+            "no stack guard: the image lacks `AIM_STACK_GUARD_BYTES` (aim_firmware::fault's \
+             MPU guard, installed by `init_core`), so an overflow overwrites the statics silently"
+                .into()
+        },
     );
 
     // Every allocated section inside one region; DMA buffers in D1/D2 SRAM.
@@ -287,21 +309,24 @@ pub fn rules(image: &Image) -> Report {
 mod tests {
     use super::*;
 
-    /// A good image: flip-link's layout, statics above the stack, DMA buffers in AXI SRAM.
+    /// A good image: statics at the start of DTCM, the guard above them, the stack at the top,
+    /// DMA buffers in AXI SRAM.
     fn good() -> Image {
         Image {
             vector_table: 0x0800_0000,
-            initial_sp: 0x2000_2a00,
+            initial_sp: 0x2002_0000,
             reset_vector: 0x0800_0299,
             reset: 0x0800_0298,
-            bss: 0x2000_2a10..0x2001_6060,
-            data: 0x2000_2a00..0x2000_2a10,
+            bss: 0x2000_0010..0x2001_6050,
+            data: 0x2000_0000..0x2000_0010,
             sidata: 0x0801_2000,
+            stack_end: 0x2001_6060,
+            stack_guard: true,
             sections: vec![
                 (".vector_table".into(), 0x0800_0000..0x0800_0298),
                 (".text".into(), 0x0800_0298..0x0801_0000),
-                (".data".into(), 0x2000_2a00..0x2000_2a10),
-                (".bss".into(), 0x2000_2a10..0x2001_6060),
+                (".data".into(), 0x2000_0000..0x2000_0010),
+                (".bss".into(), 0x2000_0010..0x2001_6050),
                 (".axisram".into(), 0x2400_0000..0x2401_0000),
             ],
             loads: std::iter::once(0x0800_0000..0x0801_2010).collect(),
@@ -318,7 +343,7 @@ mod tests {
     fn the_issue_13_layout_is_caught() {
         // Read in the release ELF at fb5587a: `.axisram` inserted after `.bss` pushed __ebss
         // into AXI SRAM, so the zero loop ran through the reserved hole after DTCM.
-        let image = Image { bss: 0x2000_0050..0x2401_4060, initial_sp: 0x2002_0000, ..good() };
+        let image = Image { bss: 0x2000_0050..0x2401_4060, stack_end: 0x2401_4060, ..good() };
         let report = rules(&image);
         assert!(
             report
@@ -331,11 +356,17 @@ mod tests {
     }
 
     #[test]
-    fn a_stack_above_the_statics_has_no_guard() {
-        let image = Image { initial_sp: 0x2002_0000, ..good() };
-        let report = rules(&image);
+    fn an_image_without_the_guard_or_with_it_in_the_stack_is_caught() {
+        let report = rules(&Image { stack_guard: false, ..good() });
         assert!(
             report.violations.iter().any(|v| v.contains("no stack guard")),
+            "{:?}",
+            report.violations
+        );
+        // Statics ending above the initial SP: the guard cannot sit below the stack.
+        let report = rules(&Image { initial_sp: 0x2001_0000, ..good() });
+        assert!(
+            report.violations.iter().any(|v| v.contains("the stack guard")),
             "{:?}",
             report.violations
         );

@@ -26,7 +26,8 @@ pub fn check_range(what: &str, value: u64, low: u64, high: u64) {
     defmt::info!("ok {=str}: {=u64} in [{=u64}, {=u64}]", what, value, low, high);
 }
 
-/// Brings the board up exactly as the firmware does: clocks (checked), I-cache, DWT.
+/// Brings the board up exactly as the firmware does: clocks (checked), I-cache, MPU stack
+/// guard, DWT.
 pub fn board() -> (embassy_stm32::Peripherals, aim_firmware::stats::CycleCounter) {
     let p = embassy_stm32::init(aim_firmware::clocks::embassy_config());
     let Some(core) = cortex_m::Peripherals::take() else {
@@ -43,22 +44,15 @@ pub fn board() -> (embassy_stm32::Peripherals, aim_firmware::stats::CycleCounter
     (p, cycles)
 }
 
-/// The DTCM stack, between the start of DTCM and the initial stack pointer (`_stack_start`):
-/// the images link through flip-link, which puts the stack *below* the statics, so it grows
-/// towards 0x2000_0000 and an overflow faults there (`cargo xtask boot` checks this layout).
-/// Painted before a measurement, scanned after.
+/// The DTCM stack, between the MPU stack guard above the static data
+/// (`aim_firmware::fault::stack_bottom`) and the initial stack pointer (`_stack_start`):
+/// painted before a measurement, scanned after.
 pub mod stack {
     const PAINT: u32 = 0x5AC3_5AC3;
-    /// First address of DTCM, the bottom of the stack (see `memory.x`).
-    const DTCM_START: usize = 0x2000_0000;
-
-    unsafe extern "C" {
-        static _stack_start: u32;
-    }
 
     fn bounds() -> (usize, usize) {
-        // A linker-script symbol: only its address is taken.
-        (DTCM_START, core::ptr::addr_of!(_stack_start) as usize)
+        use aim_firmware::fault;
+        (fault::stack_bottom() as usize, fault::stack_top() as usize)
     }
 
     /// Stack size available to the firmware, bytes.
@@ -74,7 +68,7 @@ pub mod stack {
         let sp = cortex_m::register::msp::read() as usize;
         let mut p = end;
         while p + 256 < sp {
-            // SAFETY: the words between the stack's bottom and the stack pointer are unused stack:
+            // SAFETY: the words between the stack guard and the stack pointer are unused stack:
             // nothing lives there, and this loop's own frame is above `sp - 256`.
             unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
             p += 4;

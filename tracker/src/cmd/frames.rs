@@ -2,7 +2,9 @@
 //!
 //! stdout: one JSON object per decoded frame (`aim_tracker::link::json::frame`), then one
 //! `{"kind":"stats",...}` line with the link statistics. Damaged or unknown frames are
-//! skipped and counted; `--errors` also describes each on stderr.
+//! skipped and counted; `--errors` also describes each on stderr. A board that rebooted, or a
+//! second board under an id already in use, adds a `{"kind":"reboot",...}` or
+//! `{"kind":"duplicate_id",...}` line after its `Hello` and a warning on stderr.
 
 use std::collections::HashMap;
 use std::io::Write as _;
@@ -41,6 +43,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut out = std::io::BufWriter::new(stdout.lock());
     // Sample rate per array, from its latest Hello, to give times in seconds.
     let mut rates: HashMap<u8, u32> = HashMap::new();
+    let mut boards = link::boards::Boards::new();
     let mut chunk = 0u64;
     while let Some(outcome) = source.next_outcome().with_context(|| format!("reading {name}"))? {
         chunk += 1;
@@ -51,6 +54,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
                 let rate = rates.get(&frame.header.array_id).copied();
                 writeln!(out, "{}", link::json::frame(&frame, rate))?;
+                for event in boards.observe(&frame) {
+                    eprintln!("{name}: warning: {}", link::json::board_event(&event));
+                    writeln!(out, "{}", link::json::board_event(&event))?;
+                }
                 if args.serial.is_some() {
                     out.flush()?;
                 }

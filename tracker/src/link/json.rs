@@ -12,6 +12,27 @@ fn round(x: f64, decimals: i32) -> f64 {
     (x * scale).round() / scale
 }
 
+/// A board event ([`crate::link::boards`]): `{"kind":"reboot",...}` or
+/// `{"kind":"duplicate_id",...}`.
+pub fn board_event(event: &crate::link::boards::BoardEvent) -> Value {
+    use crate::link::boards::BoardEvent;
+    match event {
+        BoardEvent::Reboot { array_id, cause, boot_count, message } => json!({
+            "kind": "reboot",
+            "array": array_id,
+            "reset_cause": cause.map_or("unknown", |c| c.name()),
+            "boot_count": boot_count,
+            "panic_message": message,
+        }),
+        BoardEvent::DuplicateId { array_id, before, now } => json!({
+            "kind": "duplicate_id",
+            "array": array_id,
+            "unique_id_before": before,
+            "unique_id_now": now,
+        }),
+    }
+}
+
 /// One frame: `kind`, `array`, `seq`, `sample_index`, `t` (seconds on the array's clock, when
 /// the sample rate is known from a `Hello`), and the payload in physical units.
 pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
@@ -37,6 +58,10 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                 .iter()
                 .map(|m| [f64::from(m[0]) / 1e4, f64::from(m[1]) / 1e4])
                 .collect::<Vec<_>>(),
+            "reset_cause": p.reset_cause().map_or("unknown", |c| c.name()),
+            "boot_count": p.boot_count,
+            "unique_id": crate::link::boards::unique_id_hex(&p.unique_id),
+            "panic_message": p.panic_message.as_str(),
         }),
         Body::Doa(p) => json!({
             "azimuth_deg": f64::from(p.azimuth_cdeg) / 100.0,
@@ -64,6 +89,15 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
             "dma_overruns": p.dma_overruns,
             "dropped_frames": p.dropped_frames,
             "queue_depth": p.queue_depth,
+            "dsp_overloads": p.dsp_overloads,
+            "sai_overruns": p.sai_overruns,
+            "gaps": p.gaps,
+            "frames_lost": p.frames_lost,
+            "outputs_dropped": p.outputs_dropped,
+            "outputs_overflowed": p.outputs_overflowed,
+            "uart_errors": p.uart_errors,
+            "frames_unencodable": p.frames_unencodable,
+            "chunks_captured": p.chunks_captured,
         }),
         // A kind added to aim-wire but not yet here: header only.
         #[allow(unreachable_patterns)]

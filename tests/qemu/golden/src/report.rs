@@ -66,6 +66,15 @@ const COUNTERS: from_dsp::FirmwareCounters = from_dsp::FirmwareCounters {
     dma_overruns: 2,
     dropped_frames: 300,
     queue_depth: 4,
+    dsp_overloads: 5,
+    sai_overruns: 6,
+    gaps: 7,
+    frames_lost: 70_000,
+    outputs_dropped: 8,
+    outputs_overflowed: 9,
+    uart_errors: 10,
+    frames_unencodable: 11,
+    chunks_captured: 123_456,
 };
 
 /// One encoded frame, `frame <hex bytes>`, or the encoder's error.
