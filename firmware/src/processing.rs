@@ -43,20 +43,33 @@ pub fn pipeline() -> &'static mut Pipeline {
     pipeline
 }
 
-/// Stops with the reason the DSP refused the board's configuration. (defmt, not `core::fmt`:
-/// float formatting alone would cost 20 KB of flash.)
+/// Stops with the reason the DSP refused the board's configuration: the values go to the
+/// defmt log, a fixed text to the panic (so the retained record and the next `Hello` name
+/// it). (defmt, not `core::fmt`, for the values: float formatting alone would cost 20 KB of
+/// flash.)
 fn config_rejected(error: &ConfigError) -> ! {
     match *error {
-        ConfigError::MicCount(n) => defmt::panic!("DSP config: {} microphones", n),
-        ConfigError::SampleRate(hz) => defmt::panic!("DSP config: sample rate {} Hz", hz),
-        ConfigError::BlockLen(n) => defmt::panic!("DSP config: block length {}", n),
+        ConfigError::MicCount(n) => {
+            defmt::error!("DSP config: {} microphones", n);
+            panic!("DSP config: microphone count");
+        }
+        ConfigError::SampleRate(hz) => {
+            defmt::error!("DSP config: sample rate {} Hz", hz);
+            panic!("DSP config: sample rate");
+        }
+        ConfigError::BlockLen(n) => {
+            defmt::error!("DSP config: block length {}", n);
+            panic!("DSP config: block length");
+        }
         ConfigError::TdmSlots { slots, mics } => {
-            defmt::panic!("DSP config: {} TDM slots for {} microphones", slots, mics)
+            defmt::error!("DSP config: {} TDM slots for {} microphones", slots, mics);
+            panic!("DSP config: TDM slots");
         }
         ConfigError::ApertureTooLarge { aperture_m } => {
-            defmt::panic!("DSP config: aperture {} m too large", aperture_m)
+            defmt::error!("DSP config: aperture {} m too large", aperture_m);
+            panic!("DSP config: aperture too large");
         }
-        _ => defmt::panic!("DSP config rejected: the geometry or a tunable (aim_dsp::ConfigError)"),
+        _ => panic!("DSP config rejected"),
     }
 }
 
