@@ -635,4 +635,47 @@ mod tests {
         let off = (mid.yaw_rad() - along + PI).rem_euclid(TAU) - PI;
         assert!(off.abs() < 2f64.to_radians(), "{}°", off.to_degrees());
     }
+    /// A vertical climb and a diagonal descent (3-D legs): all along, the rotors' total thrust
+    /// obeys Newton along the vertical, Σ k_v fᵢ² cos(tilt) = m (g + a_z) + k_d,v v_z |v_z|.
+    #[test]
+    fn climbs_and_descents_obey_newton_along_the_vertical() {
+        // No wake (it would take thrust off the rear rotors on the diagonal leg).
+        let profile = DroneProfile {
+            rotor_jitter: 0.0,
+            wake_loss_per_mps: 0.0,
+            ..DroneProfile::dji_mini_2()
+        };
+        let w =
+            [Vector3::new(0.0, 0.0, 1.5), Vector3::new(0.0, 0.0, 3.0), Vector3::new(4.0, 0.0, 2.0)];
+        let plan = FlightPlan::new(&w, 1.5, 1.0, 1.0, 0.5, 1.0, Heading::Fixed).unwrap();
+        let log = fly(
+            &profile,
+            &Airframe::nominal(4),
+            &plan,
+            0.0,
+            &ControlGains::default(),
+            Span { t0_s: 0.0, t1_s: plan.duration_s(), dt_s: 1e-3 },
+            1,
+        );
+        let kv = profile.thrust_coefficient();
+        let (mut worst, mut vz_max, mut vz_min): (f64, f64, f64) = (0.0, 0.0, 0.0);
+        // A sample's acceleration is the last physics substep's, driven by the previous
+        // sample's rotor speeds (the motors then move on): pair them so.
+        for pair in log.samples.windows(2).skip(100).step_by(10) {
+            let (s, next) = (&pair[0], &pair[1]);
+            let thrust: f64 = s.rotor_hz.iter().map(|f| kv * f * f).sum();
+            let up = (s.attitude * Vector3::z()).z;
+            let drag = profile.drag_v * s.velocity.z * s.velocity.z.abs();
+            let newton = profile.mass_kg * (GRAVITY_MPS2 + next.acceleration.z) + drag;
+            worst = worst.max((thrust * up - newton).abs() / newton);
+            vz_max = vz_max.max(s.velocity.z);
+            vz_min = vz_min.min(s.velocity.z);
+        }
+        // The motors move within a step (lag 30 ms over 1 ms steps): a few per mille.
+        assert!(worst < 0.01, "{worst}");
+        // The 1.5 m climb is too short to reach 1.5 m/s at 1 m/s²: it peaks at √(2·1·1.5/π) m/s.
+        assert!(vz_max > 0.95 && vz_min < -0.3, "{vz_max} {vz_min}");
+        let end = log.samples.last().unwrap().position;
+        assert!((end - w[2]).norm() < 0.05, "{end:?}");
+    }
 }

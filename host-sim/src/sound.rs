@@ -167,4 +167,46 @@ mod tests {
         assert!((rms_pa_to_spl(spl_to_rms_pa(77.0)) - 77.0).abs() < 1e-12);
         assert!((spl_to_rms_pa(94.0) - 1.0).abs() < 0.003);
     }
+    /// A chipped propeller: its shaft-rate line (1 × the rotor speed) comes out
+    /// `shaft_line_boost_db` louder, its BPF line unchanged (same seed, same phases).
+    #[test]
+    fn chipped_propeller_raises_its_shaft_line_only() {
+        use crate::flight::{FlightLog, FlightSample};
+        let profile = DroneProfile::dji_mini_2();
+        let sample = |t: f64| FlightSample {
+            t_s: t,
+            position: nalgebra::Vector3::zeros(),
+            velocity: nalgebra::Vector3::zeros(),
+            acceleration: nalgebra::Vector3::zeros(),
+            attitude: nalgebra::UnitQuaternion::identity(),
+            rotor_hz: vec![164.0; 4],
+        };
+        let log = FlightLog {
+            t0_s: 0.0,
+            dt_s: 0.01,
+            samples: (0..=200).map(|k| sample(k as f64 * 0.01)).collect(),
+            rotors: profile.rotors(),
+        };
+        let fs = 48_000.0;
+        // Amplitude of the line at `hz` over exactly 1 s (an integer number of its periods).
+        let line = |x: &SourceSignal, hz: f64| {
+            let (mut re, mut im) = (0.0, 0.0);
+            for (k, v) in x.samples.iter().take(48_000).enumerate() {
+                let (s, c) = (std::f64::consts::TAU * hz * k as f64 / fs).sin_cos();
+                re += f64::from(*v) * c;
+                im += f64::from(*v) * s;
+            }
+            2.0 * re.hypot(im) / 48_000.0
+        };
+        let plain = propeller(&profile, 0.0, &log, 0, 0.0, fs, 48_000, 5);
+        let chipped = propeller(&profile, 10.0, &log, 0, 0.0, fs, 48_000, 5);
+        let shaft = line(&chipped, 164.0) / line(&plain, 164.0);
+        let bpf = line(&chipped, 328.0) / line(&plain, 328.0);
+        assert!(
+            (20.0 * shaft.log10() - 10.0).abs() < 0.3,
+            "shaft line +{} dB",
+            20.0 * shaft.log10()
+        );
+        assert!((20.0 * bpf.log10()).abs() < 0.1, "BPF line {} dB", 20.0 * bpf.log10());
+    }
 }
