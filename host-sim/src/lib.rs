@@ -105,8 +105,10 @@ pub struct Simulation {
     pub arrays: Vec<ArrayRecording>,
     /// Ground truth of the flight.
     pub truth: Truth,
-    /// The site file's content.
+    /// The site file's content: what a real site would know (no clocks, no airframe).
     pub site: Site,
+    /// The airframe this run drew from the scenario's population (truth only).
+    pub airframe: profile::Airframe,
     /// The flight at the control rate (covers the recordings' whole time span).
     pub flight: FlightLog,
 }
@@ -141,7 +143,7 @@ pub fn simulate(scenario: &Scenario, progress: &ProgressBar) -> anyhow::Result<S
 }
 
 /// Seed of a named random stream of the scenario.
-fn sub_seed(seed: u64, stream: u64) -> u64 {
+pub(crate) fn sub_seed(seed: u64, stream: u64) -> u64 {
     let mut r = StdRng::seed_from_u64(seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15));
     r.random()
 }
@@ -204,10 +206,13 @@ pub fn simulate_with(
     let t_first = offsets.clone().fold(0.0f64, f64::min) - pre_roll;
     let t_last = offsets.fold(0.0f64, f64::max) + scenario.duration_s * 1.001 + 0.05;
 
-    // Flight.
+    // Flight, by the airframe this seed draws.
+    let airframe =
+        scenario.population.draw(scenario.drone.rotor_count(), sub_seed(scenario.seed, 2));
     let dt = 1.0 / scenario.render.control_rate_hz;
     let log = flight::fly(
         &scenario.drone,
+        &airframe,
         &scenario.plan,
         scenario.yaw_rad,
         &ControlGains::default(),
@@ -222,6 +227,7 @@ pub fn simulate_with(
     let rotor_signal = |i: usize| {
         sound::propeller(
             &scenario.drone,
+            airframe.shaft_line_boost_db[i],
             &log,
             i,
             t_first,
@@ -394,11 +400,12 @@ pub fn simulate_with(
     }
     progress.finish_and_clear();
 
-    let truth = make_truth(scenario, &log);
+    let mut truth = make_truth(scenario, &log);
+    truth.airframe = Some(airframe.clone());
     let site = make_site(scenario, c);
     drop(emitters);
     drop(signals);
-    Ok(Simulation { name: scenario.name.clone(), arrays, truth, site, flight: log })
+    Ok(Simulation { name: scenario.name.clone(), arrays, truth, site, airframe, flight: log })
 }
 
 /// A borrowed trajectory behind a box.
@@ -466,7 +473,13 @@ fn make_truth(s: &Scenario, log: &FlightLog) -> Truth {
             los,
         });
     }
-    Truth { blades: s.drone.blades, array_ids: s.arrays.iter().map(|a| a.id).collect(), rows }
+    Truth {
+        blades: s.drone.blades,
+        array_ids: s.arrays.iter().map(|a| a.id).collect(),
+        clocks: s.arrays.iter().map(|a| a.clock).collect(),
+        airframe: None,
+        rows,
+    }
 }
 
 fn make_site(s: &Scenario, c: f64) -> Site {
@@ -483,8 +496,6 @@ fn make_site(s: &Scenario, c: f64) -> Site {
                 positions: a.positions.iter().map(|p| p.map(|v| (v * 1e9).round() / 1e9)).collect(),
                 position: a.position_m.into(),
                 yaw_deg: a.yaw_rad.to_degrees(),
-                clock_offset_s: a.clock.offset_s,
-                clock_drift_ppm: a.clock.drift_ppm,
             })
             .collect(),
         room: s.room.as_ref().map(|r| SiteRoom { size: r.size_m }),
@@ -503,7 +514,8 @@ fn make_site(s: &Scenario, c: f64) -> Site {
 
 impl Simulation {
     /// Writes `array-<id>.wav` (32-bit float, pascals, one channel per microphone),
-    /// `truth.csv` and `site.toml` into `dir` (created if missing).
+    /// `truth.csv`, `truth.toml` (clocks, airframe) and `site.toml` into `dir` (created if
+    /// missing).
     pub fn write(&self, dir: &Path) -> anyhow::Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for a in &self.arrays {
@@ -512,6 +524,9 @@ impl Simulation {
         }
         let truth = dir.join("truth.csv");
         std::fs::write(&truth, self.truth.to_csv())
+            .with_context(|| format!("writing {}", truth.display()))?;
+        let truth = dir.join("truth.toml");
+        std::fs::write(&truth, self.truth.to_toml())
             .with_context(|| format!("writing {}", truth.display()))?;
         let site = dir.join("site.toml");
         std::fs::write(&site, self.site.to_toml()?)
@@ -536,4 +551,100 @@ fn write_wav(path: &Path, a: &ArrayRecording) -> anyhow::Result<()> {
     }
     w.finalize()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every key path of a TOML value ("array.clock_offset_s" style), and every number in it.
+    fn walk(v: &toml::Value, prefix: &str, keys: &mut Vec<String>, numbers: &mut Vec<f64>) {
+        match v {
+            toml::Value::Table(t) => {
+                for (k, x) in t {
+                    let p = if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") };
+                    keys.push(p.clone());
+                    walk(x, &p, keys, numbers);
+                }
+            }
+            toml::Value::Array(a) => a.iter().for_each(|x| walk(x, prefix, keys, numbers)),
+            toml::Value::Float(f) => numbers.push(*f),
+            toml::Value::Integer(i) => numbers.push(*i as f64),
+            _ => {}
+        }
+    }
+
+    /// The site file audit: what `site.toml` says is only what a real site knows (where the
+    /// arrays, room and obstacles are, the nominal rate, the air's speed of sound). The arrays'
+    /// clock offsets and drifts and the drawn airframe go to `truth.toml` instead.
+    #[test]
+    fn site_file_holds_nothing_from_the_truth() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        // Five arrays with their own clocks, and an airframe drawn from a wide population.
+        let mut overrides = toml::Table::new();
+        let airframe: toml::Table = toml::from_str(
+            "wake_spread = 0.3\ncg_offset_mm = 2.0\nthrust_spread = 0.03\nchipped_probability = 1.0",
+        )
+        .unwrap();
+        overrides.insert("airframe".into(), toml::Value::Table(airframe));
+        let s = Scenario::load_with(&dir.join("zigzag10-los.toml"), 7, &overrides).unwrap();
+        assert!(s.arrays.iter().any(|a| a.clock.offset_s != 0.0 && a.clock.drift_ppm != 0.0));
+        let site: toml::Value = toml::from_str(&make_site(&s, 343.0).to_toml().unwrap()).unwrap();
+        let (mut keys, mut numbers) = (Vec::new(), Vec::new());
+        walk(&site, "", &mut keys, &mut numbers);
+        let allowed = [
+            "sample_rate_hz",
+            "speed_of_sound_mps",
+            "array",
+            "array.id",
+            "array.geometry",
+            "array.positions",
+            "array.position",
+            "array.yaw_deg",
+            "room",
+            "room.size",
+            "obstacle",
+            "obstacle.name",
+            "obstacle.min",
+            "obstacle.max",
+            "obstacle.loss_db",
+        ];
+        for k in &keys {
+            assert!(allowed.contains(&k.as_str()), "site.toml carries `{k}`");
+        }
+        let airframe = s.population.draw(s.drone.rotor_count(), sub_seed(s.seed, 2));
+        assert!(airframe.chipped_rotor.is_some());
+        let mut secrets: Vec<f64> =
+            s.arrays.iter().flat_map(|a| [a.clock.offset_s, a.clock.drift_ppm]).collect();
+        secrets.extend([airframe.wake_gain, airframe.cg_offset_m[0], airframe.cg_offset_m[1]]);
+        secrets.extend(&airframe.thrust_factor);
+        for x in secrets.iter().filter(|x| **x != 0.0 && **x != 1.0) {
+            assert!(!numbers.contains(x), "site.toml holds the truth's value {x}");
+        }
+        // …and the truth file has them.
+        let mut truth = make_truth(&s, &flight_stub(&s));
+        truth.airframe = Some(airframe.clone());
+        let t: toml::Value = toml::from_str(&truth.to_toml()).unwrap();
+        let (mut tk, mut tn) = (Vec::new(), Vec::new());
+        walk(&t, "", &mut tk, &mut tn);
+        assert!(tk.contains(&"array.clock_drift_ppm".to_string()));
+        assert!(tn.contains(&s.arrays[1].clock.offset_s) && tn.contains(&airframe.wake_gain));
+    }
+
+    /// A one-sample flight log at the plan's start (enough for `make_truth`'s shape).
+    fn flight_stub(s: &Scenario) -> FlightLog {
+        FlightLog {
+            t0_s: 0.0,
+            dt_s: 1.0,
+            samples: vec![flight::FlightSample {
+                t_s: 0.0,
+                position: s.plan.at(0.0).position,
+                velocity: Vector3::zeros(),
+                acceleration: Vector3::zeros(),
+                attitude: nalgebra::UnitQuaternion::identity(),
+                rotor_hz: vec![164.0; 4],
+            }],
+            rotors: s.drone.rotors(),
+        }
+    }
 }

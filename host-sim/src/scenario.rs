@@ -17,9 +17,23 @@
 //! truth_rate_hz = 100.0            # [100]
 //! [air]       temperature_c = 20.0, humidity_percent = 50.0, pressure_pa = 101325.0
 //! [drone]     preset = "dji-mini-2", plus any `DroneProfile` field to override it
-//! [path]      kind = "square" | "waypoints" | "hover"
+//! [airframe]  the population each run's airframe is drawn from (`profile::Population`; all
+//!             [0] = the nominal airframe): wake_spread (±fraction of the wake slope),
+//!             wake_curvature_per_mps, cg_offset_mm (largest CG offset), thrust_spread (±fraction
+//!             per motor), jitter_spread (±fraction per rotor), chipped_probability,
+//!             chipped_thrust_loss [0.03], chipped_line_db [10]
+//! [path]      kind = "square" | "waypoints" | "hover" | "smooth" | "circle" | "eight" | "walk"
 //!             square: side_m, start = [x, y], height_m, clockwise [false], loops [1]
 //!             waypoints: points = [[x, y, z], ...];  hover: position = [x, y, z]
+//!             (square and waypoints stop at every corner; the kinds below never stop)
+//!             smooth: points = [[x, y, z], ...] flown as one smooth spline (heights may change)
+//!             circle: centre = [x, y], radius_m, height_m, start_deg [-90] (start point's angle
+//!             from the centre), clockwise [false], loops [1]
+//!             eight: centre = [x, y], length_m, height_m, axis_deg [0], loops [1] (lemniscate of
+//!             Bernoulli: width length_m / 2√2, tightest radius length_m / 6)
+//!             walk (hand-flown random walk, fixed heading): position = [x, y, z] (start),
+//!             area_min = [x, y, z], area_max = [x, y, z], wander_s [40], walk_tau_s [2],
+//!             max_climb_mps [1], max_jerk_mps3 [3 × max_accel_mps2]; speed_mps is its top speed
 //!             speed_mps [1.5], max_accel_mps2 [1.0], hover_start_s [3], corner_pause_s [0.5],
 //!             hover_end_s [3], heading = "fixed" | "along-track" ["fixed"]
 //!             fixed: yaw_deg [0], the heading held throughout
@@ -46,7 +60,7 @@ use crate::air::Air;
 use crate::array::{preset_positions, ArrayConfig, Clock, GEOMETRY_PRESETS};
 use crate::noise::{DiffuseNoise, NoiseSource};
 use crate::obstacle::Obstacle;
-use crate::path::{square, FlightPlan, Heading};
+use crate::path::{square, FlightPlan, Heading, Shape, Spline, WalkSpec};
 
 /// Default peak yaw rate of nose-first flight, °/s. DJI lists the Mini 2's maximum angular
 /// velocity as 130 °/s (Sport mode); its Normal mode turns at about 60 °/s; 90 °/s is between.
@@ -55,7 +69,7 @@ pub const DEFAULT_YAW_RATE_DPS: f64 = 90.0;
 /// turn of the simulated DJI Mini 2 (I_z 7.5e-4 kg·m², k_h/k_v 12 mm) needs about ±8 % of hover
 /// thrust between odd and even rotors (±4 % rotor speed), well inside the motors' headroom.
 pub const DEFAULT_YAW_ACCEL_DPS2: f64 = 180.0;
-use crate::profile::DroneProfile;
+use crate::profile::{DroneProfile, Population};
 use crate::room::Room;
 
 #[derive(Deserialize)]
@@ -102,6 +116,17 @@ struct FilePath {
     #[serde(default = "d_hover")]
     hover_end_s: f64,
     yaw_deg: Option<f64>,
+    centre: Option<[f64; 2]>,
+    radius_m: Option<f64>,
+    start_deg: Option<f64>,
+    length_m: Option<f64>,
+    axis_deg: Option<f64>,
+    area_min: Option<[f64; 3]>,
+    area_max: Option<[f64; 3]>,
+    wander_s: Option<f64>,
+    walk_tau_s: Option<f64>,
+    max_climb_mps: Option<f64>,
+    max_jerk_mps3: Option<f64>,
     heading: Option<String>,
     yaw_rate_dps: Option<f64>,
     yaw_accel_dps2: Option<f64>,
@@ -127,6 +152,38 @@ fn d_pause() -> f64 {
 enum Absorption {
     All(f64),
     Each([f64; 6]),
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct FileAirframe {
+    wake_spread: Option<f64>,
+    wake_curvature_per_mps: Option<f64>,
+    cg_offset_mm: Option<f64>,
+    thrust_spread: Option<f64>,
+    jitter_spread: Option<f64>,
+    chipped_probability: Option<f64>,
+    chipped_thrust_loss: Option<f64>,
+    chipped_line_db: Option<f64>,
+}
+
+impl FileAirframe {
+    fn population(&self) -> Result<Population, String> {
+        let d = Population::default();
+        let p = Population {
+            wake_spread: self.wake_spread.unwrap_or(d.wake_spread),
+            wake_curvature_per_mps: self.wake_curvature_per_mps.unwrap_or(d.wake_curvature_per_mps),
+            cg_offset_m: self.cg_offset_mm.map_or(d.cg_offset_m, |mm| mm * 1e-3),
+            thrust_spread: self.thrust_spread.unwrap_or(d.thrust_spread),
+            jitter_spread: self.jitter_spread.unwrap_or(d.jitter_spread),
+            chipped_probability: self.chipped_probability.unwrap_or(d.chipped_probability),
+            chipped_thrust_loss: self.chipped_thrust_loss.unwrap_or(d.chipped_thrust_loss),
+            chipped_line_db: self.chipped_line_db.unwrap_or(d.chipped_line_db),
+        };
+        p.validate()
+            .map_err(|e| e.replace("airframe.cg_offset_m", "airframe.cg_offset_mm (in m)"))?;
+        Ok(p)
+    }
 }
 
 #[derive(Deserialize)]
@@ -244,6 +301,8 @@ struct File {
     truth_rate_hz: f64,
     air: Option<FileAir>,
     drone: toml::Table,
+    #[serde(default)]
+    airframe: FileAirframe,
     path: FilePath,
     room: Option<FileRoom>,
     #[serde(default)]
@@ -315,8 +374,10 @@ pub struct Scenario {
     pub truth_rate_hz: f64,
     /// The air.
     pub air: Air,
-    /// The drone.
+    /// The drone (its profile).
     pub drone: DroneProfile,
+    /// The population each run's airframe is drawn from (seeded by `seed`).
+    pub population: Population,
     /// Its flight plan.
     pub plan: FlightPlan,
     /// Heading it holds, rad (with `heading = "along-track"`, the plan's initial heading; the
@@ -388,6 +449,24 @@ impl Scenario {
         Ok(s)
     }
 
+    /// Reads and checks a scenario file as [`Scenario::load`] does, with its `seed` replaced by
+    /// `seed` and the keys of `overrides` merged over its tables (e.g. an `[airframe]` table
+    /// from a bench suite). Every seed-dependent part (a random walk's course, the airframe
+    /// drawn) follows the new seed.
+    pub fn load_with(path: &Path, seed: u64, overrides: &toml::Table) -> anyhow::Result<Self> {
+        let (mut table, _) = load_table(path, 0)?;
+        merge(&mut table, overrides.clone());
+        table.insert("seed".into(), toml::Value::Integer(seed as i64));
+        table.remove("base");
+        let file: File = table
+            .try_into()
+            .map_err(|e| anyhow!("{} (with the suite's overrides): {e}", path.display()))?;
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let mut s = Self::from_file(file, stem).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        s.source = Some(path.to_path_buf());
+        Ok(s)
+    }
+
     /// Parses and checks scenario text (no `base`); `name` is used when the text has none.
     pub fn from_toml(text: &str, name: &str) -> anyhow::Result<Self> {
         let file: File = toml::from_str(text).map_err(|e| anyhow!("scenario `{name}`: {e}"))?;
@@ -440,42 +519,12 @@ impl Scenario {
                 .map_err(|e: toml::de::Error| format!("drone: {}", e.message()))?,
         };
         drone.validate()?;
+        let population = f.airframe.population()?;
 
         let p = &f.path;
         let need = |v: Option<f64>, key: &str| {
             v.ok_or_else(|| format!("path.{key} is required for kind `{}`", p.kind))
         };
-        let waypoints: Vec<Vector3<f64>> = match p.kind.as_str() {
-            "square" => {
-                let side = need(p.side_m, "side_m")?;
-                let height = need(p.height_m, "height_m")?;
-                let start = p.start.ok_or("path.start = [x, y] is required for kind `square`")?;
-                if !(side > 0.0 && height.is_finite()) {
-                    return Err("path.side_m must be positive".into());
-                }
-                square(start, side, height, p.clockwise, p.loops)
-            }
-            "waypoints" => p
-                .points
-                .as_ref()
-                .ok_or("path.points = [[x, y, z], ...] is required for kind `waypoints`")?
-                .iter()
-                .map(|q| Vector3::from(*q))
-                .collect(),
-            "hover" => vec![Vector3::from(
-                p.position.ok_or("path.position = [x, y, z] is required for kind `hover`")?,
-            )],
-            k => return Err(format!("path.kind `{k}` is unknown (square, waypoints, hover)")),
-        };
-        if waypoints.iter().flat_map(|w| w.iter()).any(|v| !v.is_finite()) {
-            return Err("path: waypoints must be finite".into());
-        }
-        if p.speed_mps > 20.0 {
-            return Err(format!(
-                "path.speed_mps {} is beyond what the drone model flies (20 m/s)",
-                p.speed_mps
-            ));
-        }
         let heading = match p.heading.as_deref().unwrap_or("fixed") {
             "fixed" => {
                 if p.yaw_rate_dps.is_some() || p.yaw_accel_dps2.is_some() {
@@ -507,15 +556,132 @@ impl Scenario {
             }
             h => return Err(format!("path.heading `{h}` is unknown (fixed, along-track)")),
         };
-        let plan = FlightPlan::new(
-            &waypoints,
-            p.speed_mps,
-            p.max_accel_mps2,
-            p.hover_start_s,
-            p.corner_pause_s,
-            p.hover_end_s,
-            heading,
-        )
+        if p.speed_mps > 20.0 {
+            return Err(format!(
+                "path.speed_mps {} is beyond what the drone model flies (20 m/s)",
+                p.speed_mps
+            ));
+        }
+        let height = || need(p.height_m, "height_m");
+        let centre =
+            || p.centre.ok_or(format!("path.centre = [x, y] is required for kind `{}`", p.kind));
+        let loops = p.loops.max(1);
+        let continuous = |shape: Shape| {
+            FlightPlan::continuous(
+                shape,
+                p.speed_mps,
+                p.max_accel_mps2,
+                p.hover_start_s,
+                p.hover_end_s,
+                heading,
+            )
+        };
+        let plan = match p.kind.as_str() {
+            "smooth" => {
+                let points: Vec<Vector3<f64>> = p
+                    .points
+                    .as_ref()
+                    .ok_or("path.points = [[x, y, z], ...] is required for kind `smooth`")?
+                    .iter()
+                    .map(|q| Vector3::from(*q))
+                    .collect();
+                if points.iter().flat_map(|w| w.iter()).any(|v| !v.is_finite()) {
+                    return Err("path: points must be finite".into());
+                }
+                let spline = Spline::through(&points)
+                    .ok_or("path.points: kind `smooth` needs at least two distinct points")?;
+                continuous(Shape::Spline(spline))
+            }
+            "circle" => {
+                let radius_m = need(p.radius_m, "radius_m")?;
+                if !(radius_m > 0.0 && radius_m.is_finite()) {
+                    return Err("path.radius_m must be positive".into());
+                }
+                continuous(Shape::Circle {
+                    centre: centre()?,
+                    height_m: height()?,
+                    radius_m,
+                    start_rad: p.start_deg.unwrap_or(-90.0).to_radians(),
+                    sense: if p.clockwise { -1.0 } else { 1.0 },
+                    loops,
+                })
+            }
+            "eight" => {
+                let length_m = need(p.length_m, "length_m")?;
+                if !(length_m > 0.0 && length_m.is_finite()) {
+                    return Err("path.length_m must be positive".into());
+                }
+                continuous(Shape::Eight {
+                    centre: centre()?,
+                    height_m: height()?,
+                    length_m,
+                    axis_rad: p.axis_deg.unwrap_or(0.0).to_radians(),
+                    loops,
+                })
+            }
+            "walk" => {
+                if heading != Heading::Fixed {
+                    return Err("path.heading: kind `walk` flies with a fixed heading".into());
+                }
+                let corner = |v: Option<[f64; 3]>, key: &str| {
+                    v.map(Vector3::from)
+                        .ok_or(format!("path.{key} = [x, y, z] is required for kind `walk`"))
+                };
+                let spec = WalkSpec {
+                    start: corner(p.position, "position")?,
+                    area_min: corner(p.area_min, "area_min")?,
+                    area_max: corner(p.area_max, "area_max")?,
+                    wander_s: p.wander_s.unwrap_or(40.0),
+                    tau_s: p.walk_tau_s.unwrap_or(2.0),
+                    max_speed_mps: p.speed_mps,
+                    max_climb_mps: p.max_climb_mps.unwrap_or(1.0),
+                    max_accel_mps2: p.max_accel_mps2,
+                    max_jerk_mps3: p.max_jerk_mps3.unwrap_or(3.0 * p.max_accel_mps2),
+                    seed: crate::sub_seed(f.seed, 3),
+                };
+                FlightPlan::walk(&spec, p.hover_start_s, p.hover_end_s)
+            }
+            _ => {
+            let waypoints: Vec<Vector3<f64>> = match p.kind.as_str() {
+                "square" => {
+                    let side = need(p.side_m, "side_m")?;
+                    let height = need(p.height_m, "height_m")?;
+                    let start = p.start.ok_or("path.start = [x, y] is required for kind `square`")?;
+                    if !(side > 0.0 && height.is_finite()) {
+                        return Err("path.side_m must be positive".into());
+                    }
+                    square(start, side, height, p.clockwise, p.loops)
+                }
+                "waypoints" => p
+                    .points
+                    .as_ref()
+                    .ok_or("path.points = [[x, y, z], ...] is required for kind `waypoints`")?
+                    .iter()
+                    .map(|q| Vector3::from(*q))
+                    .collect(),
+                "hover" => vec![Vector3::from(
+                    p.position.ok_or("path.position = [x, y, z] is required for kind `hover`")?,
+                )],
+                k => {
+                        return Err(format!(
+                            "path.kind `{k}` is unknown (square, waypoints, hover, smooth, circle, eight, walk)"
+                        ))
+                    }
+            };
+            if waypoints.iter().flat_map(|w| w.iter()).any(|v| !v.is_finite()) {
+                return Err("path: waypoints must be finite".into());
+            }
+            FlightPlan::new(
+                &waypoints,
+                p.speed_mps,
+                p.max_accel_mps2,
+                p.hover_start_s,
+                p.corner_pause_s,
+                p.hover_end_s,
+                heading,
+            )
+            }
+        }
         .map_err(|e| format!("path: {e}"))?;
         let yaw_rad =
             plan.heading_at(0.0).map_or(p.yaw_deg.unwrap_or(0.0).to_radians(), |h| h.yaw_rad);
@@ -649,6 +815,7 @@ impl Scenario {
             truth_rate_hz: f.truth_rate_hz,
             air,
             drone,
+            population,
             plan,
             yaw_rad,
             room,

@@ -4,7 +4,8 @@
 //! Per rotor with shaft phase φ(t) = ∫ f dt (cycles):
 //! - tonal: `Σₘ Aₘ cos(2π m φ + ψₘ)` over shaft harmonics m = 1 ..= blades·K. Multiples of the
 //!   blade count are the BPF harmonics (level falling `harmonic_slope_db` per harmonic); the
-//!   others are the shaft-rate lines of imbalance (`shaft_line_db` below). Random phases ψₘ.
+//!   others are the shaft-rate lines of imbalance (`shaft_line_db` below, plus the airframe's
+//!   boost on a chipped propeller, [`crate::profile::Airframe`]). Random phases ψₘ.
 //! - broadband: Gaussian noise shaped to 250 Hz – 6 kHz, amplitude-modulated at the BPF
 //!   (`1 + ½ cos 2π n φ`), `broadband_db` relative to the tonal power.
 //! - both scale with `(f / f_hover)^level_exponent`.
@@ -40,22 +41,26 @@ pub struct SourceSignal {
     pub samples: Vec<f32>,
 }
 
-/// Relative amplitudes of the shaft harmonics m = 1..=blades·K (index m−1), before scaling.
-fn harmonic_shape(profile: &DroneProfile) -> Vec<f64> {
+/// Relative amplitudes of the shaft harmonics m = 1..=blades·K (index m−1), before scaling;
+/// the shaft-rate lines `shaft_line_boost_db` above the profile's.
+fn harmonic_shape(profile: &DroneProfile, shaft_line_boost_db: f64) -> Vec<f64> {
     let n = profile.blades as usize;
     (1..=n * profile.bpf_harmonics as usize)
         .map(|m| {
             let k = m as f64 / n as f64; // harmonic number in BPF units
             let db = profile.harmonic_slope_db * (k - 1.0).max(0.0)
-                + if m % n == 0 { 0.0 } else { profile.shaft_line_db };
+                + if m % n == 0 { 0.0 } else { profile.shaft_line_db + shaft_line_boost_db };
             10f64.powf(db / 20.0)
         })
         .collect()
 }
 
-/// Synthesizes the sound of rotor `rotor` of a flight, `len` samples from `t0_s`.
+/// Synthesizes the sound of rotor `rotor` of a flight, `len` samples from `t0_s`; its shaft-rate
+/// lines `shaft_line_boost_db` louder than the profile says (a chipped propeller; 0 nominal).
+#[allow(clippy::too_many_arguments)] // one rotor's sound: profile, flight, grid, airframe, seed
 pub fn propeller(
     profile: &DroneProfile,
+    shaft_line_boost_db: f64,
     log: &FlightLog,
     rotor: usize,
     t0_s: f64,
@@ -64,12 +69,13 @@ pub fn propeller(
     seed: u64,
 ) -> SourceSignal {
     let mut rng = StdRng::seed_from_u64(seed);
-    let shape = harmonic_shape(profile);
+    let shape = harmonic_shape(profile, shaft_line_boost_db);
     // Per-rotor RMS in hover; tonal and broadband shares of its power.
     let p_rotor = spl_to_rms_pa(profile.spl_1m_db) / (profile.rotor_count() as f64).sqrt();
     let bb_ratio = 10f64.powf(profile.broadband_db / 10.0);
     let tonal_power = p_rotor * p_rotor / (1.0 + bb_ratio);
-    let unit_power: f64 = shape.iter().map(|a| a * a / 2.0).sum();
+    // Calibrated on the profile's own shape: a chipped propeller's boost adds power.
+    let unit_power: f64 = harmonic_shape(profile, 0.0).iter().map(|a| a * a / 2.0).sum();
     let tonal_scale = (tonal_power / unit_power).sqrt();
     let amps: Vec<f64> = shape.iter().map(|a| a * tonal_scale).collect();
     let phases: Vec<(f64, f64)> =
@@ -160,5 +166,47 @@ mod tests {
     fn spl_round_trip() {
         assert!((rms_pa_to_spl(spl_to_rms_pa(77.0)) - 77.0).abs() < 1e-12);
         assert!((spl_to_rms_pa(94.0) - 1.0).abs() < 0.003);
+    }
+    /// A chipped propeller: its shaft-rate line (1 × the rotor speed) comes out
+    /// `shaft_line_boost_db` louder, its BPF line unchanged (same seed, same phases).
+    #[test]
+    fn chipped_propeller_raises_its_shaft_line_only() {
+        use crate::flight::{FlightLog, FlightSample};
+        let profile = DroneProfile::dji_mini_2();
+        let sample = |t: f64| FlightSample {
+            t_s: t,
+            position: nalgebra::Vector3::zeros(),
+            velocity: nalgebra::Vector3::zeros(),
+            acceleration: nalgebra::Vector3::zeros(),
+            attitude: nalgebra::UnitQuaternion::identity(),
+            rotor_hz: vec![164.0; 4],
+        };
+        let log = FlightLog {
+            t0_s: 0.0,
+            dt_s: 0.01,
+            samples: (0..=200).map(|k| sample(k as f64 * 0.01)).collect(),
+            rotors: profile.rotors(),
+        };
+        let fs = 48_000.0;
+        // Amplitude of the line at `hz` over exactly 1 s (an integer number of its periods).
+        let line = |x: &SourceSignal, hz: f64| {
+            let (mut re, mut im) = (0.0, 0.0);
+            for (k, v) in x.samples.iter().take(48_000).enumerate() {
+                let (s, c) = (std::f64::consts::TAU * hz * k as f64 / fs).sin_cos();
+                re += f64::from(*v) * c;
+                im += f64::from(*v) * s;
+            }
+            2.0 * re.hypot(im) / 48_000.0
+        };
+        let plain = propeller(&profile, 0.0, &log, 0, 0.0, fs, 48_000, 5);
+        let chipped = propeller(&profile, 10.0, &log, 0, 0.0, fs, 48_000, 5);
+        let shaft = line(&chipped, 164.0) / line(&plain, 164.0);
+        let bpf = line(&chipped, 328.0) / line(&plain, 328.0);
+        assert!(
+            (20.0 * shaft.log10() - 10.0).abs() < 0.3,
+            "shaft line +{} dB",
+            20.0 * shaft.log10()
+        );
+        assert!((20.0 * bpf.log10()).abs() < 0.1, "BPF line {} dB", 20.0 * bpf.log10());
     }
 }

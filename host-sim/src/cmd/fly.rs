@@ -44,10 +44,13 @@ pub struct Args {
 }
 
 /// What one tracker run gave.
-struct TrackRun {
-    kind: FilterKind,
-    fixes: Vec<Fix>,
-    summary: metrics::Summary,
+pub(crate) struct TrackRun {
+    /// The filter.
+    pub kind: FilterKind,
+    /// Its fixes.
+    pub fixes: Vec<Fix>,
+    /// Its errors against the truth.
+    pub summary: metrics::Summary,
 }
 
 /// Runs `host-sim fly`.
@@ -69,13 +72,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         host_sim::simulate_with(&scenario, &host_sim::Options { threads: args.threads }, &progress)
             .with_context(|| format!("simulating {}", args.scenario.display()))?;
     progress.finish_and_clear();
+    let runs = track(&sim, &out, &profile, &kinds, args.period)?;
+    for r in &runs {
+        let s = &r.summary;
+        println!(
+            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}",
+            scenario.name,
+            filter_name(r.kind),
+            s.mean_m,
+            s.median_m,
+            s.p90_m,
+            100.0 * s.availability,
+            s.fixes,
+            s.due,
+            100.0 * s.motion_accuracy,
+            s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
+        );
+        let _ = r.fixes.len();
+    }
+    Ok(())
+}
 
+/// Everything `host-sim fly` does after simulating, shared with `host-sim bench`: writes the
+/// site and truth files and every array's frame bytes into `out`, runs them through the
+/// tracker with each filter of `kinds` (fixes every `period` s) and compares with the truth.
+pub(crate) fn track(
+    sim: &host_sim::Simulation,
+    out: &Path,
+    profile: &Profile,
+    kinds: &[FilterKind],
+    period: f64,
+) -> anyhow::Result<Vec<TrackRun>> {
     // The tracker reads the site file the simulator writes, as `aim replay` would.
     let site_text = sim.site.to_toml()?;
     let site_path = out.join("site.toml");
     std::fs::write(&site_path, &site_text)
         .with_context(|| format!("writing {}", site_path.display()))?;
     std::fs::write(out.join("truth.csv"), sim.truth.to_csv()).context("writing truth.csv")?;
+    std::fs::write(out.join("truth.toml"), sim.truth.to_toml()).context("writing truth.toml")?;
     let site = aim_tracker::site::Site::parse(&site_text, &site_path)?;
 
     // Every array through the pipeline and the link.
@@ -98,8 +132,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     let mut runs = Vec::new();
-    for &kind in &kinds {
-        let config = TrackerConfig { output_period_s: args.period, ..TrackerConfig::default() };
+    for &kind in kinds {
+        let config = TrackerConfig { output_period_s: period, ..TrackerConfig::default() };
         let mut tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
         let array_index = sim
             .truth
@@ -112,8 +146,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             fixes.extend(tracker.push(input));
         }
         fixes.extend(tracker.flush());
-        let summary = metrics::evaluate(&fixes, &sim.truth, args.period, first, last, array_index);
-        let dir = if kinds.len() > 1 { out.join(filter_name(kind)) } else { out.clone() };
+        let summary = metrics::evaluate(&fixes, &sim.truth, period, first, last, array_index);
+        let dir = if kinds.len() > 1 { out.join(filter_name(kind)) } else { out.to_path_buf() };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         write_track(&dir.join("track.csv"), &fixes, &sim.truth)?;
         plot::plot_track(&dir.join("track.png"), &fixes, &sim.truth, &sim.site)?;
@@ -125,27 +159,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         runs.push(TrackRun { kind, fixes, summary });
     }
-    for r in &runs {
-        let s = &r.summary;
-        println!(
-            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}",
-            scenario.name,
-            filter_name(r.kind),
-            s.mean_m,
-            s.median_m,
-            s.p90_m,
-            100.0 * s.availability,
-            s.fixes,
-            s.due,
-            100.0 * s.motion_accuracy,
-            s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
-        );
-        let _ = r.fixes.len();
-    }
-    Ok(())
+    Ok(runs)
 }
 
-fn filter_name(kind: FilterKind) -> &'static str {
+/// The filter's name on the command line and in output paths.
+pub(crate) fn filter_name(kind: FilterKind) -> &'static str {
     match kind {
         FilterKind::Paper => "paper",
         FilterKind::Aim => "aim",

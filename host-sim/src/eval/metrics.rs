@@ -63,7 +63,9 @@ fn quantile(sorted: &[f64], p: f64) -> f64 {
 }
 
 /// Compares fixes with the truth. Output instants are due every `period_s` from `WARM_UP_S`
-/// after `first_input_t` to `last_input_t` (both s); `array_index` picks the LoS column.
+/// after `first_input_t` to `last_input_t` (both s, on the tracked array's clock, as the fixes'
+/// times are); `array_index` picks that array's clock (to find the truth at true time) and its
+/// LoS column.
 pub fn evaluate(
     fixes: &[Fix],
     truth: &Truth,
@@ -82,7 +84,8 @@ pub fn evaluate(
     let mut los_known = 0;
     let mut counted = 0;
     for f in fixes.iter().filter(|f| f.t >= start - 1e-9 && f.t <= last_input_t + 1e-9) {
-        let Some((p, v, w)) = truth_at(truth, f.t) else { continue };
+        let t = truth.true_time(array_index, f.t);
+        let Some((p, v, w)) = truth_at(truth, t) else { continue };
         counted += 1;
         errors.push(
             ((f.position[0] - p[0]).powi(2)
@@ -93,8 +96,7 @@ pub fn evaluate(
         if f.motion == MotionClass::of_kinematics(v, w, MOVING_MPS, YAWING_RAD_S) {
             class_right += 1;
         }
-        let i =
-            truth.rows.partition_point(|r| r.t_s <= f.t).min(truth.rows.len().saturating_sub(1));
+        let i = truth.rows.partition_point(|r| r.t_s <= t).min(truth.rows.len().saturating_sub(1));
         if let Some(&los) = truth.rows.get(i).and_then(|r| r.los.get(array_index)) {
             los_known += 1;
             if los == f.los {
@@ -141,6 +143,8 @@ mod tests {
         let truth = Truth {
             blades: 2,
             array_ids: vec![1],
+            clocks: vec![],
+            airframe: None,
             rows: (0..=200).map(|k| row(k as f64 * 0.01, k as f64 * 0.01, 1.0)).collect(),
         };
         // Fixes every 0.1 s from 0.3 s to 1.9 s, each 0.5 m off in y, one missing (1.0 s).
