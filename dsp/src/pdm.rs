@@ -186,7 +186,7 @@ impl PdmDecimator {
         tdm_slots: usize,
     ) -> Result<usize, PdmError> {
         let period = self.period_bytes();
-        if pdm.len() % period != 0 {
+        if !pdm.len().is_multiple_of(period) {
             return Err(PdmError::PartialPeriod { bytes: pdm.len(), period });
         }
         if tdm_slots < self.mics {
