@@ -12,8 +12,8 @@
 //!    the byte, one table load, one add; per output: `acc & 0xFFFF` is the finished CIC sum
 //!    (0..=4096, exact), `acc >> 16` carries the next output's partial sum. No lane can carry
 //!    into the next: a finished sum is at most 4096 < 2¹⁶.
-//! 2. **Compensation FIR, 3 taps at 48 kHz**, `[−a, 1 + 2a, −a]` with `a = 25 323 / 2¹⁸`
-//!    (≈ 0.0966): lifts the CIC's droop (−0.45 dB at 6 kHz, −0.80 dB at 8 kHz) back to within
+//! 2. **Compensation FIR, 3 taps at 48 kHz**, `[−a, 1 + 2a, −a]` with `a = 99 · 2⁸ / 2¹⁸`
+//!    (≈ 0.0967): lifts the CIC's droop (−0.45 dB at 6 kHz, −0.80 dB at 8 kHz) back to within
 //!    0.03 dB of flat over 0–8 kHz (the GCC-PHAT band ends at 6 kHz, the BPF harmonics at
 //!    4 kHz). It is centred on the previous CIC output, so the decimator delays by one
 //!    output sample more than the CIC (group delay 63 input bits + 1 output ≈ 41 µs, the same
@@ -50,8 +50,9 @@ pub const BYTES_PER_OUTPUT: usize = DECIMATION / 8;
 pub const CIC_TAPS: usize = 2 * DECIMATION - 1;
 /// Sum of the CIC taps, the CIC output for an all-ones input: 64².
 pub const CIC_GAIN: u32 = (DECIMATION * DECIMATION) as u32;
-/// Compensation FIR side tap `a`, Q18.
-pub const COMP_SIDE_Q18: i32 = 25_323;
+/// Compensation FIR side tap `a`, Q18: 25 344 / 2¹⁸ ≈ 0.0967 (a multiple of 2⁸, so that
+/// every word's low 8 bits are zero).
+pub const COMP_SIDE_Q18: i32 = 99 << 8;
 /// Compensation FIR centre tap `1 + 2a`, Q18 (DC gain exactly 1).
 pub const COMP_CENTRE_Q18: i32 = (1 << 18) + 2 * COMP_SIDE_Q18;
 /// Bits the compensated sample is shifted by: a CIC output `y` maps to `(2y − 4096) · 2¹⁸`, so
@@ -64,6 +65,8 @@ const _: () = assert!(
 );
 // A finished CIC sum fits its 16-bit lane.
 const _: () = assert!(CIC_GAIN < 1 << 16);
+// Every word is a multiple of 2⁸ (a 24-bit sample left-justified).
+const _: () = assert!(COMP_SIDE_Q18 % 256 == 0 && COMP_CENTRE_Q18 % 256 == 0);
 
 /// The CIC's tap `j` (0 = applied to the newest bit): the triangle `min(j, 126 − j) + 1`.
 pub const fn cic_tap(j: usize) -> u32 {
@@ -139,9 +142,12 @@ pub enum PdmError {
 struct Channel {
     /// The next output's partial CIC sum, in the high 16 bits.
     carry: u32,
-    /// The last two CIC outputs as signed samples `2y − 4096`: `[y(n−1), y(n−2)]`.
-    history: [i32; 2],
+    /// The compensation FIR's state ([`comp_state`] of the last two CIC sums).
+    history: [u32; 2],
 }
+
+/// A CIC output of silence (density ½): the compensation FIR's history at start.
+const MIDSCALE: u32 = CIC_GAIN / 2;
 
 /// PDM → 48 kHz decimator for up to [`MAX_MICS`] microphones (see the module docs).
 #[derive(Debug, Clone)]
@@ -163,7 +169,7 @@ impl PdmDecimator {
         if mics == 0 {
             mics = 1;
         }
-        let channel = Channel { carry: 0, history: [0; 2] };
+        let channel = Channel { carry: 0, history: comp_state(MIDSCALE, MIDSCALE) };
         Self { mics, stride, channels: [channel; MAX_MICS] }
     }
 
@@ -206,84 +212,123 @@ impl PdmDecimator {
                 frame[self.mics..].fill(0);
             }
         }
-        let stride = self.stride;
-        for (m, channel) in self.channels[..self.mics].iter_mut().enumerate() {
-            let words = out[m..].iter_mut().step_by(tdm_slots);
-            // Fast paths with the stride known at compile time (no bounds checks in the loop).
-            match stride {
-                8 => decimate_channel::<8>(channel, pdm, m, words),
-                6 => decimate_channel::<6>(channel, pdm, m, words),
-                4 => decimate_channel::<4>(channel, pdm, m, words),
-                _ => decimate_channel_any(channel, pdm, stride, m, words),
+        // Two passes, each with few enough live values to stay in registers: the CIC writes
+        // each period's packed accumulator into the output slots, then the compensation FIR
+        // turns them into words in place, one microphone at a time.
+        let (mics, stride) = (self.mics, self.stride);
+        // Fast paths (TDM frames of 8 slots, the firmware's and the golden checks'): groups of
+        // up to four microphones with the layout known at compile time.
+        // Fast paths (TDM frames of 8 slots, the firmware's and the golden checks'): one pass
+        // per microphone with the layout known at compile time, CIC and compensation fused.
+        let fast = tdm_slots == 8
+            && self.channels[..mics].iter_mut().enumerate().all(|(m, channel)| match stride {
+                8 => decimate_mic::<8>(channel, pdm, m, out),
+                6 => decimate_mic::<6>(channel, pdm, m, out),
+                4 => decimate_mic::<4>(channel, pdm, m, out),
+                _ => false,
+            });
+        if !fast {
+            for (m, channel) in self.channels[..mics].iter_mut().enumerate() {
+                let words = out[m..].iter_mut().step_by(tdm_slots);
+                cic_any(&mut channel.carry, pdm, stride, m, words);
+                compensate(&mut channel.history, out[m..].iter_mut().step_by(tdm_slots));
             }
         }
         Ok(frames)
     }
 }
 
-/// The CIC outputs of one period: `acc` = previous carry `>> 16` plus the eight table entries.
-/// Returns the word (compensated) and updates the history.
+/// Microphone `m` whose bytes are `STRIDE` apart (byte `p` of a period is
+/// `period[p · STRIDE + m]`) into slot `m` of frames of 8 slots: the CIC (per byte one load of
+/// the byte, one table load `ldr r, [base, byte, lsl #2]` with the eight table bases held in
+/// registers, one add) and the compensation FIR. `false` (nothing done) if the layout does not
+/// fit.
 #[inline(always)]
-fn finish(acc: u32, history: &mut [i32; 2]) -> i32 {
-    let [s1, s2] = *history;
-    let s0 = 2 * (acc & 0xFFFF) as i32 - CIC_GAIN as i32;
-    let z = COMP_CENTRE_Q18 * s1 - COMP_SIDE_Q18 * (s0 + s2);
-    *history = [s0, s1];
-    z & !0xFF
-}
-
-/// Microphone `m` of bytes `STRIDE` apart: byte `p` of a period is `period[p · STRIDE + m]`.
-#[inline(always)]
-fn decimate_channel<'a, const STRIDE: usize>(
+fn decimate_mic<const STRIDE: usize>(
     channel: &mut Channel,
     pdm: &[u8],
     m: usize,
-    out: impl Iterator<Item = &'a mut i32>,
-) {
-    if m >= STRIDE {
-        return;
+    out: &mut [i32],
+) -> bool {
+    if m >= STRIDE || m >= 8 {
+        return false;
     }
-    let t = &CIC_TABLES;
-    let mut carry = channel.carry;
-    let mut history = channel.history;
-    for (period, word) in pdm.chunks_exact(BYTES_PER_OUTPUT * STRIDE).zip(out) {
-        let byte = |p: usize| usize::from(period[p * STRIDE + m]);
-        let acc = (carry >> 16)
-            + t[0][byte(0)]
-            + t[1][byte(1)]
-            + t[2][byte(2)]
-            + t[3][byte(3)]
-            + t[4][byte(4)]
-            + t[5][byte(5)]
-            + t[6][byte(6)]
-            + t[7][byte(7)];
-        carry = acc;
-        *word = finish(acc, &mut history);
+    let (rows, _) = pdm.as_chunks::<STRIDE>();
+    let (periods, _) = rows.as_chunks::<BYTES_PER_OUTPUT>();
+    let (frames, _) = out.as_chunks_mut::<8>();
+    // Left to itself, LLVM rebuilds each table's constant address for every load (two or three
+    // instructions instead of one); `black_box` makes the bases opaque values, nothing else.
+    let [t0, t1, t2, t3, t4, t5, t6, t7] = core::hint::black_box(CIC_TABLES.each_ref());
+    let mut acc = channel.carry;
+    let [mut q, mut y1] = channel.history;
+    for (period, frame) in periods.iter().zip(frames) {
+        let byte = |p: usize| usize::from(period[p][m]);
+        acc = (acc >> 16)
+            + t0[byte(0)]
+            + t1[byte(1)]
+            + t2[byte(2)]
+            + t3[byte(3)]
+            + t4[byte(4)]
+            + t5[byte(5)]
+            + t6[byte(6)]
+            + t7[byte(7)];
+        let y0 = acc & 0xFFFF;
+        frame[m] = q.wrapping_sub(K_SIDE.wrapping_mul(y0)) as i32;
+        [q, y1] = comp_state(y0, y1);
     }
-    channel.carry = carry;
-    channel.history = history;
+    channel.carry = acc;
+    channel.history = [q, y1];
+    true
 }
 
-/// As [`decimate_channel`] for a stride known only at run time.
-fn decimate_channel_any<'a>(
-    channel: &mut Channel,
+/// The CIC of microphone `m` whose bytes are `stride` apart, for layouts without a fast path:
+/// writes each period's packed accumulator (the sum in the low 16 bits) to `out`.
+fn cic_any<'a>(
+    carry: &mut u32,
     pdm: &[u8],
     stride: usize,
     m: usize,
     out: impl Iterator<Item = &'a mut i32>,
 ) {
-    let mut carry = channel.carry;
-    let mut history = channel.history;
+    let mut acc = *carry;
     for (period, word) in pdm.chunks_exact(BYTES_PER_OUTPUT * stride).zip(out) {
-        let mut acc = carry >> 16;
+        acc >>= 16;
         for (p, table) in CIC_TABLES.iter().enumerate() {
             acc += table[usize::from(period.get(p * stride + m).copied().unwrap_or(0))];
         }
-        carry = acc;
-        *word = finish(acc, &mut history);
+        *word = acc as i32;
     }
-    channel.carry = carry;
-    channel.history = history;
+    *carry = acc;
+}
+
+/// Compensation FIR coefficient `2C` (`C = 1 + 2a`, Q18) for CIC sums `y` (0..=4096).
+const K_CENTRE: u32 = 2 * COMP_CENTRE_Q18 as u32;
+/// Compensation FIR coefficient `2a` (Q18) for CIC sums `y`.
+const K_SIDE: u32 = 2 * COMP_SIDE_Q18 as u32;
+/// The offset of the centred samples: `C · 4096 − 2a · 4096 = 2³⁰`.
+const K_OFFSET: u32 = 1 << 30;
+
+/// The compensation FIR's state after two CIC sums `y1` (newer) and `y2`:
+/// `[2C·y1 − 2a·y2 − 2³⁰, y1]` (wrapping).
+const fn comp_state(y1: u32, y2: u32) -> [u32; 2] {
+    [K_CENTRE.wrapping_mul(y1).wrapping_sub(K_SIDE.wrapping_mul(y2)).wrapping_sub(K_OFFSET), y1]
+}
+
+/// The compensation FIR in place: each word holds a packed CIC accumulator (sum `y` in the low
+/// 16 bits) and becomes `C·(2y(n−1) − 4096) − a·(2y(n) − 4096 + 2y(n−2) − 4096)` in Q18, i.e.
+/// `2C·y(n−1) − 2a·(y(n) + y(n−2)) − 2³⁰` = `q − 2a·y(n)` with `q` from [`comp_state`] of the
+/// two previous sums. The products may exceed `i32`, the result never does (see the
+/// assertion above), so wrapping arithmetic is exact. Both coefficients are multiples of 2⁸:
+/// the low 8 bits of every word are zero, as in a TDM slot.
+#[inline(always)]
+fn compensate<'a>(state: &mut [u32; 2], words: impl Iterator<Item = &'a mut i32>) {
+    let [mut q, mut y1] = *state;
+    for word in words {
+        let y0 = u32::from(*word as u16);
+        *word = q.wrapping_sub(K_SIDE.wrapping_mul(y0)) as i32;
+        [q, y1] = comp_state(y0, y1);
+    }
+    *state = [q, y1];
 }
 
 #[cfg(test)]
@@ -397,41 +442,42 @@ mod tests {
             noise ^= noise << 5;
             noise
         };
-        let mics = 6;
-        let stride = 8;
-        let frames = 300;
-        let bytes: Vec<u8> =
-            (0..frames * BYTES_PER_OUTPUT * stride).map(|_| next() as u8).collect();
-        let mut d = PdmDecimator::new(mics, stride);
-        let slots = 8;
-        let mut out = vec![-1i32; frames * slots];
-        // Two pushes with a split inside the stream: the state carries over.
-        let half = frames / 3 * BYTES_PER_OUTPUT * stride;
-        let first = d.push(&bytes[..half], &mut out, slots).unwrap();
-        let second = d.push(&bytes[half..], &mut out[first * slots..], slots).unwrap();
-        assert_eq!(first + second, frames);
-        for m in 0..slots {
-            let bits: Vec<i64> = bytes
-                .iter()
-                .skip(m)
-                .step_by(stride)
-                .flat_map(|&b| (0..8).rev().map(move |k| i64::from((b >> k) & 1)))
-                .collect();
-            let mut s = [0i64; 3];
-            for n in 0..frames {
-                if m >= mics {
-                    assert_eq!(out[n * slots + m], 0, "unused slot {m}");
-                    continue;
+        // The fast path (6 microphones, 8-byte periods) and the general one (3 in 5).
+        for (mics, stride) in [(6, 8), (3, 5), (8, 8)] {
+            let frames = 300;
+            let bytes: Vec<u8> =
+                (0..frames * BYTES_PER_OUTPUT * stride).map(|_| next() as u8).collect();
+            let mut d = PdmDecimator::new(mics, stride);
+            let slots = 8;
+            let mut out = vec![-1i32; frames * slots];
+            // Two pushes with a split inside the stream: the state carries over.
+            let half = frames / 3 * BYTES_PER_OUTPUT * stride;
+            let first = d.push(&bytes[..half], &mut out, slots).unwrap();
+            let second = d.push(&bytes[half..], &mut out[first * slots..], slots).unwrap();
+            assert_eq!(first + second, frames);
+            for m in 0..slots {
+                let bits: Vec<i64> = bytes
+                    .iter()
+                    .skip(m)
+                    .step_by(stride)
+                    .flat_map(|&b| (0..8).rev().map(move |k| i64::from((b >> k) & 1)))
+                    .collect();
+                let mut s = [0i64; 3];
+                for n in 0..frames {
+                    if m >= mics {
+                        assert_eq!(out[n * slots + m], 0, "unused slot {m}");
+                        continue;
+                    }
+                    let last = DECIMATION * n + DECIMATION - 1;
+                    let y: i64 = (0..CIC_TAPS)
+                        .filter(|&j| j <= last)
+                        .map(|j| i64::from(cic_tap(j)) * bits[last - j])
+                        .sum();
+                    s = [2 * y - i64::from(CIC_GAIN), s[0], s[1]];
+                    let z = i64::from(COMP_CENTRE_Q18) * s[1]
+                        - i64::from(COMP_SIDE_Q18) * (s[0] + s[2]);
+                    assert_eq!(i64::from(out[n * slots + m]), z & !0xFF, "mic {m} frame {n}");
                 }
-                let last = DECIMATION * n + DECIMATION - 1;
-                let y: i64 = (0..CIC_TAPS)
-                    .filter(|&j| j <= last)
-                    .map(|j| i64::from(cic_tap(j)) * bits[last - j])
-                    .sum();
-                s = [2 * y - i64::from(CIC_GAIN), s[0], s[1]];
-                let z =
-                    i64::from(COMP_CENTRE_Q18) * s[1] - i64::from(COMP_SIDE_Q18) * (s[0] + s[2]);
-                assert_eq!(i64::from(out[n * slots + m]), z & !0xFF, "mic {m} frame {n}");
             }
         }
         // Full scale: all ones gives +2^30 (after the filters fill), all zeros −2^30.

@@ -10,7 +10,11 @@
 use core::fmt::Write;
 
 use aim_golden::{
-    aim_dsp::{Output, Pipeline},
+    aim_dsp::{
+        pdm::{PdmDecimator, BYTES_PER_OUTPUT},
+        Output, Pipeline,
+    },
+    pdm::PdmSignal,
     aim_wire::{
         from_dsp::{self, FirmwareCounters},
         Encoder, MAX_ENCODED_LEN,
@@ -37,6 +41,8 @@ fn run(out: &mut Out, pipeline: &mut Pipeline) -> core::fmt::Result {
     for scenario in &COST {
         measure(out, pipeline, scenario)?;
     }
+    // The 8-microphone array with PDM microphones: decimator + the same pipeline.
+    measure_pdm(out, pipeline, &COST[2])?;
 
     // Reference figure: one microfft rfft_1024 on golden input.
     let mut x = [0f32; 1024];
@@ -107,6 +113,55 @@ fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core:
     // loop (input synthesis, `push` with its sink, the encode path): an upper bound for `push`.
     writeln!(out, "ram dsp-{} {}", scenario.name, core::mem::size_of::<Pipeline>() + stack)?;
     writeln!(out, "section {} {} {}", scenario.name, end - start, config.sample_rate_hz)?;
+    probe(Probe::Dump);
+    Ok(())
+}
+
+/// As [`measure`], with PDM microphones: per chunk, the golden PDM bytes (synthesis charged to
+/// `input`), the decimator (`pdm`), then the pipeline on its words. Section `<name>-pdm`.
+fn measure_pdm(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core::fmt::Result {
+    let config = scenario.config();
+    if pipeline.configure(&config).is_err() || config.tdm_slots != config.geometry.positions().len()
+    {
+        writeln!(out, "error: scenario {} does not configure for PDM", scenario.name)?;
+        fail();
+    }
+    let mics = config.tdm_slots;
+    let mut pdm = PdmSignal::new(scenario.signal(), mics);
+    let mut decimator = PdmDecimator::new(mics, mics);
+    let mut bytes = [0u8; CHUNK_FRAMES * BYTES_PER_OUTPUT * MAX_TDM_SLOTS];
+    let bytes = &mut bytes[..CHUNK_FRAMES * pdm.frame_bytes()];
+    let mut words = [0i32; CHUNK_FRAMES * MAX_TDM_SLOTS];
+    let words = &mut words[..CHUNK_FRAMES * mics];
+    let mut pending = Pending { outputs: [None; MAX_OUTPUTS_PER_CHUNK], len: 0 };
+    let mut chunk = |pdm: &mut PdmSignal, pending: &mut Pending| {
+        probe(Probe::Input);
+        pdm.fill(bytes);
+        probe(Probe::Pdm);
+        let frames = decimator.push(bytes, words, mics);
+        probe(Probe::PipelineOther);
+        pipeline.push(words, &mut |output| pending.keep(output));
+        probe(Probe::Untracked);
+        pending.len = 0;
+        frames == Ok(CHUNK_FRAMES)
+    };
+    let warm_up = scenario.measured_samples() as u64 / 8;
+    while pdm.sample_index() < warm_up {
+        if !chunk(&mut pdm, &mut pending) {
+            fail();
+        }
+    }
+    writeln!(out, "section warmup-{}-pdm {warm_up} {}", scenario.name, config.sample_rate_hz)?;
+    probe(Probe::Dump);
+    let start = pdm.sample_index();
+    let end = start + scenario.measured_samples() as u64;
+    while pdm.sample_index() < end {
+        if !chunk(&mut pdm, &mut pending) {
+            fail();
+        }
+    }
+    writeln!(out, "ram pdm-decimator {}", core::mem::size_of::<PdmDecimator>())?;
+    writeln!(out, "section {}-pdm {} {}", scenario.name, end - start, config.sample_rate_hz)?;
     probe(Probe::Dump);
     Ok(())
 }
