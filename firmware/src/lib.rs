@@ -17,6 +17,8 @@
 #![no_std]
 
 pub mod capture;
+#[cfg(feature = "pdm")]
+pub mod capture_pdm;
 pub mod clocks;
 pub mod config;
 pub mod dma_buffer;

@@ -12,7 +12,7 @@
 #![no_std]
 #![no_main]
 
-use aim_firmware::capture::{self, SaiCapture};
+use aim_firmware::capture;
 use aim_firmware::{clocks, config, processing, uplink};
 use cortex_m_rt::entry;
 use embassy_executor::{Executor, InterruptExecutor};
@@ -57,13 +57,19 @@ fn main() -> ! {
     watchdog.unleash();
 
     let (chunk_tx, chunk_rx) = capture::chunk_queue();
-    let sai = SaiCapture::new(aim_firmware::sai_pins!(p));
+    #[cfg(not(feature = "pdm"))]
+    let sai = capture::SaiCapture::new(aim_firmware::sai_pins!(p));
+    #[cfg(feature = "pdm")]
+    let sai = aim_firmware::capture_pdm::PdmCapture::new(aim_firmware::sai_pins!(p));
     let uart = defmt::unwrap!(uplink::uplink_uart(p.USART3, p.PD8, p.DMA1_CH1));
     let processing = processing::Processing::new(cycles, watchdog);
 
     interrupt::UART4.set_priority(Priority::P6);
     let spawner = EXECUTOR_CAPTURE.start(interrupt::UART4);
+    #[cfg(not(feature = "pdm"))]
     spawner.spawn(defmt::unwrap!(capture::capture_task(sai, chunk_tx)));
+    #[cfg(feature = "pdm")]
+    spawner.spawn(defmt::unwrap!(aim_firmware::capture_pdm::capture_task(sai, chunk_tx)));
     spawner.spawn(defmt::unwrap!(uplink::uplink_task(uart)));
 
     let executor = EXECUTOR_THREAD.init(Executor::new());
