@@ -12,16 +12,16 @@
 //!    the byte, one table load, one add; per output: `acc & 0xFFFF` is the finished CIC sum
 //!    (0..=4096, exact), `acc >> 16` carries the next output's partial sum. No lane can carry
 //!    into the next: a finished sum is at most 4096 < 2¹⁶.
-//! 2. **Compensation FIR, 3 taps at 48 kHz**, `[−a, 1 + 2a, −a]` with `a = 99 · 2⁸ / 2¹⁸`
-//!    (≈ 0.0967): lifts the CIC's droop (−0.45 dB at 6 kHz, −0.80 dB at 8 kHz) back to within
-//!    0.03 dB of flat over 0–8 kHz (the GCC-PHAT band ends at 6 kHz, the BPF harmonics at
+//! 2. **Compensation FIR, 3 taps at 48 kHz**, `[−a, 1 + 2a, −a]` with `a = 3/32`: lifts the
+//!    CIC's droop (−0.45 dB at 6 kHz, −0.80 dB at 8 kHz) back to within 0.02 dB of flat over
+//!    0–6 kHz and 0.05 dB over 0–8 kHz (the GCC-PHAT band ends at 6 kHz, the BPF harmonics at
 //!    4 kHz). It is centred on the previous CIC output, so the decimator delays by one
 //!    output sample more than the CIC (group delay 63 input bits + 1 output ≈ 41 µs, the same
 //!    for every microphone, so relative delays are untouched).
 //!
 //! Why a second-order CIC and not a longer filter: the byte-table trick packs the partial sums
 //! of the outputs a byte contributes to into one 32-bit word, which is what makes it cheap
-//! (≈ 3 instructions per byte on a Cortex-M4F; the budget `dsp-8mic-pdm` is 8 microphones plus
+//! (about 3 instructions per byte on a Cortex-M4F; the budget `dsp-8mic-pdm` is 8 microphones plus
 //! the 8-microphone pipeline within 45 M instructions per second of audio). A third-order CIC
 //! spans three output periods and sums to 2¹⁸: three 19-bit lanes need two words per byte,
 //! about 5 instructions per byte, over the budget; rounding its taps down to fit three lanes
@@ -50,9 +50,9 @@ pub const BYTES_PER_OUTPUT: usize = DECIMATION / 8;
 pub const CIC_TAPS: usize = 2 * DECIMATION - 1;
 /// Sum of the CIC taps, the CIC output for an all-ones input: 64².
 pub const CIC_GAIN: u32 = (DECIMATION * DECIMATION) as u32;
-/// Compensation FIR side tap `a`, Q18: 25 344 / 2¹⁸ ≈ 0.0967 (a multiple of 2⁸, so that
-/// every word's low 8 bits are zero).
-pub const COMP_SIDE_Q18: i32 = 99 << 8;
+/// Compensation FIR side tap `a` = 3/32, Q18: a multiple of 2⁸, so that every word's low 8
+/// bits are zero, and `2a`, `2(1 + 2a)` in Q18 are single-instruction immediates on Thumb-2.
+pub const COMP_SIDE_Q18: i32 = 3 << 13;
 /// Compensation FIR centre tap `1 + 2a`, Q18 (DC gain exactly 1).
 pub const COMP_CENTRE_Q18: i32 = (1 << 18) + 2 * COMP_SIDE_Q18;
 /// Bits the compensated sample is shifted by: a CIC output `y` maps to `(2y − 4096) · 2¹⁸`, so
@@ -212,14 +212,11 @@ impl PdmDecimator {
                 frame[self.mics..].fill(0);
             }
         }
-        // Two passes, each with few enough live values to stay in registers: the CIC writes
-        // each period's packed accumulator into the output slots, then the compensation FIR
-        // turns them into words in place, one microphone at a time.
+        // Per microphone, two passes, each with few enough live values to stay in registers:
+        // the CIC writes each period's packed accumulator into the microphone's slot, then the
+        // compensation FIR turns them into words in place. Fast paths for TDM frames of 8
+        // slots (the firmware's and the golden checks') with the layout known at compile time.
         let (mics, stride) = (self.mics, self.stride);
-        // Fast paths (TDM frames of 8 slots, the firmware's and the golden checks'): groups of
-        // up to four microphones with the layout known at compile time.
-        // Fast paths (TDM frames of 8 slots, the firmware's and the golden checks'): one pass
-        // per microphone with the layout known at compile time, CIC and compensation fused.
         let fast = tdm_slots == 8
             && self.channels[..mics].iter_mut().enumerate().all(|(m, channel)| match stride {
                 8 => decimate_mic::<8>(channel, pdm, m, out),
@@ -239,10 +236,8 @@ impl PdmDecimator {
 }
 
 /// Microphone `m` whose bytes are `STRIDE` apart (byte `p` of a period is
-/// `period[p · STRIDE + m]`) into slot `m` of frames of 8 slots: the CIC (per byte one load of
-/// the byte, one table load `ldr r, [base, byte, lsl #2]` with the eight table bases held in
-/// registers, one add) and the compensation FIR. `false` (nothing done) if the layout does not
-/// fit.
+/// `period[p · STRIDE + m]`) into slot `m` of frames of 8 slots: [`cic_pass`], then
+/// [`compensate_slot`]. `false` (nothing done) if the layout does not fit.
 #[inline(always)]
 fn decimate_mic<const STRIDE: usize>(
     channel: &mut Channel,
@@ -256,11 +251,48 @@ fn decimate_mic<const STRIDE: usize>(
     let (rows, _) = pdm.as_chunks::<STRIDE>();
     let (periods, _) = rows.as_chunks::<BYTES_PER_OUTPUT>();
     let (frames, _) = out.as_chunks_mut::<8>();
-    // Left to itself, LLVM rebuilds each table's constant address for every load (two or three
-    // instructions instead of one); `black_box` makes the bases opaque values, nothing else.
-    let [t0, t1, t2, t3, t4, t5, t6, t7] = core::hint::black_box(CIC_TABLES.each_ref());
-    let mut acc = channel.carry;
-    let [mut q, mut y1] = channel.history;
+    channel.carry = cic_pass(channel.carry, periods, frames, m);
+    // Second pass, the compensation FIR, with the slot known at compile time.
+    let state = &mut channel.history;
+    match m {
+        0 => compensate_slot::<0>(state, frames_again(out)),
+        1 => compensate_slot::<1>(state, frames_again(out)),
+        2 => compensate_slot::<2>(state, frames_again(out)),
+        3 => compensate_slot::<3>(state, frames_again(out)),
+        4 => compensate_slot::<4>(state, frames_again(out)),
+        5 => compensate_slot::<5>(state, frames_again(out)),
+        6 => compensate_slot::<6>(state, frames_again(out)),
+        _ => compensate_slot::<7>(state, frames_again(out)),
+    }
+    true
+}
+
+/// The CIC of microphone `m` (first pass of [`decimate_mic`]): each period's packed accumulator
+/// into slot `m`; returns the last accumulator. Per byte: one load of the byte, one table load
+/// (`ldr r, [base, index, lsl #2]`), one add; four table bases, each covering tables `p` and
+/// `p + 4` (1024 entries further: bytes 4–7 index with `byte + 1024`, one more add), because
+/// eight bases next to the loop's other values make LLVM spill and reload them. Not inlined
+/// for the same reason (fewer live values). Left to itself, LLVM also rebuilds each constant
+/// table address per load; `black_box` makes the bases opaque values, nothing else.
+/// Measured on the Cortex-M4F model: BENCHMARKS.md, "PDM microphones".
+#[inline(never)]
+fn cic_pass<const STRIDE: usize>(
+    mut acc: u32,
+    periods: &[[[u8; STRIDE]; BYTES_PER_OUTPUT]],
+    frames: &mut [[i32; 8]],
+    m: usize,
+) -> u32 {
+    if m >= STRIDE || m >= 8 {
+        return acc;
+    }
+    let flat = CIC_TABLES.as_flattened();
+    let window =
+        |q: usize| -> Option<&[u32; 1280]> { flat.get(q * 256..q * 256 + 1280)?.try_into().ok() };
+    let (Some(t0), Some(t1), Some(t2), Some(t3)) = (window(0), window(1), window(2), window(3))
+    else {
+        return acc;
+    };
+    let [t0, t1, t2, t3] = core::hint::black_box([t0, t1, t2, t3]);
     for (period, frame) in periods.iter().zip(frames) {
         let byte = |p: usize| usize::from(period[p][m]);
         acc = (acc >> 16)
@@ -268,17 +300,31 @@ fn decimate_mic<const STRIDE: usize>(
             + t1[byte(1)]
             + t2[byte(2)]
             + t3[byte(3)]
-            + t4[byte(4)]
-            + t5[byte(5)]
-            + t6[byte(6)]
-            + t7[byte(7)];
-        let y0 = acc & 0xFFFF;
-        frame[m] = q.wrapping_sub(K_SIDE.wrapping_mul(y0)) as i32;
+            + t0[byte(4) + 1024]
+            + t1[byte(5) + 1024]
+            + t2[byte(6) + 1024]
+            + t3[byte(7) + 1024];
+        frame[m] = acc as i32;
+    }
+    acc
+}
+
+/// `out` as frames of 8 slots.
+#[inline(always)]
+fn frames_again(out: &mut [i32]) -> &mut [[i32; 8]] {
+    out.as_chunks_mut::<8>().0
+}
+
+/// [`compensate`] on slot `M` of every frame (not inlined, like [`cic_pass`]: fewer live values).
+#[inline(never)]
+fn compensate_slot<const M: usize>(state: &mut [u32; 2], frames: &mut [[i32; 8]]) {
+    let [mut q, mut y1] = *state;
+    for frame in frames {
+        let y0 = u32::from(frame[M] as u16);
+        frame[M] = q.wrapping_sub(K_SIDE.wrapping_mul(y0)) as i32;
         [q, y1] = comp_state(y0, y1);
     }
-    channel.carry = acc;
-    channel.history = [q, y1];
-    true
+    *state = [q, y1];
 }
 
 /// The CIC of microphone `m` whose bytes are `stride` apart, for layouts without a fast path:
