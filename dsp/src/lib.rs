@@ -29,6 +29,7 @@ pub mod frontend;
 pub mod gcc_phat;
 mod geometry;
 mod output;
+pub mod pdm;
 pub mod pipeline;
 pub mod window;
 

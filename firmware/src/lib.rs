@@ -19,6 +19,8 @@
 
 pub mod boot;
 pub mod capture;
+#[cfg(feature = "pdm")]
+pub mod capture_pdm;
 pub mod clocks;
 pub mod config;
 pub mod dma_buffer;

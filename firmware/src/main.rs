@@ -14,7 +14,7 @@
 #![no_main]
 
 use aim_firmware::boot::StartReport;
-use aim_firmware::capture::{self, SaiCapture};
+use aim_firmware::capture;
 use aim_firmware::{clocks, config, processing, uplink};
 use cortex_m_rt::entry;
 use defmt_rtt as _;
@@ -62,7 +62,10 @@ fn main() -> ! {
     watchdog.unleash();
 
     let (chunk_tx, chunk_rx) = capture::chunk_queue();
-    let sai = SaiCapture::new(aim_firmware::sai_pins!(p));
+    #[cfg(not(feature = "pdm"))]
+    let sai = capture::SaiCapture::new(aim_firmware::sai_pins!(p));
+    #[cfg(feature = "pdm")]
+    let sai = aim_firmware::capture_pdm::PdmCapture::new(aim_firmware::sai_pins!(p));
     let Ok(uart) = uplink::uplink_uart(p.USART3, p.PD8, p.DMA1_CH1) else {
         panic!("USART3 configuration rejected");
     };
@@ -70,9 +73,11 @@ fn main() -> ! {
 
     interrupt::UART4.set_priority(Priority::P6);
     let spawner = EXECUTOR_CAPTURE.start(interrupt::UART4);
-    let (Ok(capture), Ok(uplink)) =
-        (capture::capture_task(sai, chunk_tx), uplink::uplink_task(uart))
-    else {
+    #[cfg(not(feature = "pdm"))]
+    let capture = capture::capture_task(sai, chunk_tx);
+    #[cfg(feature = "pdm")]
+    let capture = aim_firmware::capture_pdm::capture_task(sai, chunk_tx);
+    let (Ok(capture), Ok(uplink)) = (capture, uplink::uplink_task(uart)) else {
         panic!("capture or uplink task spawned twice");
     };
     spawner.spawn(capture);
