@@ -375,7 +375,7 @@ fn check_hello(
                 expected: format!("an earlier Hello announced {earlier} Hz"),
             });
         }
-        _ if !PLAUSIBLE_RATES_HZ.contains(&rate) => {
+        (None, _) if !PLAUSIBLE_RATES_HZ.contains(&rate) => {
             return Err(IntakeError::SampleRate {
                 array: id,
                 hello_hz: rate,
