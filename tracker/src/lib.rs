@@ -7,6 +7,8 @@
 //! - [`dynamics`]: thrust, hover self-calibration, accelerations and speeds;
 //! - [`filter`]: the paper's position-only Kalman filter and the `aim` EKF mixture;
 //! - [`tracker`]: the pipeline that runs them at a fixed output period;
+//! - [`link`], [`intake`], [`session`]: link bytes → frames → inputs in time order on one time
+//!   base → the tracker, the one path of `aim track`, `aim replay` and `host-sim fly`;
 //! - [`profile`], [`site`]: drone profiles and site files (TOML).
 #![warn(missing_docs)]
 
@@ -22,6 +24,7 @@ pub mod link;
 pub mod motion;
 pub mod observation;
 pub mod profile;
+pub mod session;
 pub mod site;
 #[cfg(test)]
 mod testutil;

@@ -12,7 +12,8 @@
 //! pitch_deg = 0.0              # optional: rotation about the array's y, degrees
 //! roll_deg = 0.0               # optional: rotation about the array's x, degrees
 //! geometry = "respeaker-6mic"  # optional, informative
-//! positions = [[0.0463, 0.0]]  # optional: microphone positions, array frame, m (informative)
+//! positions = [[0.0463, 0.0]]  # optional: microphone positions, array frame, m (checked
+//!                              # against the array's Hello)
 //! clock_offset_s = 0.0         # optional: true time of the array's sample 0, s
 //! clock_drift_ppm = 0.0        # optional: the array clock's rate error, ppm
 //!
@@ -44,6 +45,9 @@ pub struct ArrayPose {
     pub rotation: [[f64; 3]; 3],
     /// Geometry name, if given.
     pub geometry: Option<String>,
+    /// Microphone positions `[x, y]` in the array frame, m, if given (empty otherwise): a
+    /// `Hello` announcing others is an error.
+    pub mic_positions_m: Vec<[f64; 2]>,
     /// True time of the array's sample 0, s.
     pub clock_offset_s: f64,
     /// Rate error of the array's clock, ppm (its second lasts 1 + drift·1e-6 true seconds).
@@ -61,7 +65,15 @@ impl ArrayPose {
             [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
             [-sp, cp * sr, cp * cr],
         ];
-        Self { id, position, rotation, geometry: None, clock_offset_s: 0.0, clock_drift_ppm: 0.0 }
+        Self {
+            id,
+            position,
+            rotation,
+            geometry: None,
+            mic_positions_m: Vec::new(),
+            clock_offset_s: 0.0,
+            clock_drift_ppm: 0.0,
+        }
     }
 
     /// True time, s, of sample `index` of this array's clock at nominal rate `sample_rate_hz`.
@@ -137,7 +149,6 @@ struct ArrayEntry {
     roll_deg: f64,
     geometry: Option<String>,
     #[serde(default)]
-    #[allow(dead_code)]
     positions: Vec<[f64; 2]>,
     #[serde(default)]
     clock_offset_s: f64,
@@ -200,6 +211,13 @@ impl Site {
                 a.roll_deg.to_radians(),
             );
             pose.geometry = a.geometry.clone();
+            if !a.positions.iter().flatten().all(|v| v.is_finite()) {
+                return Err(err(
+                    entry.span(),
+                    format!("array {}: microphone positions must be finite", a.id),
+                ));
+            }
+            pose.mic_positions_m = a.positions.clone();
             pose.clock_offset_s = a.clock_offset_s;
             pose.clock_drift_ppm = a.clock_drift_ppm;
             arrays.push(pose);

@@ -58,6 +58,9 @@ pub struct TrackerConfig {
     pub min_separation_hz: f64,
     /// DoA or spectra older than this are stale, s.
     pub stale_s: f64,
+    /// Inputs of the tracked array further apart than this are a silence, s: the track
+    /// restarts after it (keeping only the hover calibration), as the drone may be anywhere.
+    pub max_gap_s: f64,
     /// Consecutive hover needed before the hover thrust is calibrated, s.
     pub calibration_hover_s: f64,
     /// A thrust excess beyond this many hover spreads (of the window mean) is significant.
@@ -87,6 +90,7 @@ impl Default for TrackerConfig {
             min_relative_amplitude: 0.25,
             min_separation_hz: 2.0,
             stale_s: 0.5,
+            max_gap_s: 2.0,
             calibration_hover_s: 1.0,
             accel_sigmas: 3.0,
             excess_window_s: 0.8,
@@ -99,8 +103,12 @@ impl Default for TrackerConfig {
 /// One position fix.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Fix {
-    /// Time, s.
+    /// Time it describes, s (host time base).
     pub t: f64,
+    /// When it became available, s (same time base): the end of the newest audio the array
+    /// had sent when the fix was emitted; no frame that arrived later went into it. The
+    /// tracker alone sets `t`; [`crate::session::Session`] sets the moment of its intake.
+    pub available: f64,
     /// Position, world ENU m.
     pub position: [f64; 3],
     /// Velocity, m/s.
@@ -117,8 +125,9 @@ impl Fix {
     /// The fix as one JSON object (the `aim track`/`aim replay` contract).
     pub fn to_json(&self) -> String {
         format!(
-            "{{\"t\":{:.3},\"x\":{:.3},\"y\":{:.3},\"z\":{:.3},\"motion\":\"{}\",\"los\":{}}}",
+            "{{\"t\":{:.3},\"available\":{:.3},\"x\":{:.3},\"y\":{:.3},\"z\":{:.3},\"motion\":\"{}\",\"los\":{}}}",
             self.t,
+            self.available,
             self.position[0],
             self.position[1],
             self.position[2],
@@ -160,7 +169,13 @@ pub struct Tracker {
     /// Time of the newest spectrum frame given to `wake` and `split`, s.
     wake_last_t: f64,
     filter: Box<dyn Filter + Send>,
-    next_output: Option<f64>,
+    kind: FilterKind,
+    /// Index of the next output instant (instants are `k · output_period_s`).
+    next_output: Option<i64>,
+    /// Spans of audio the tracked array sent, s, merged, oldest first.
+    audio: VecDeque<(f64, f64)>,
+    /// Fixes only where audio was reported.
+    gate_on_audio: bool,
     last_output: Option<f64>,
     hover_run_s: f64,
     latest_input_t: f64,
@@ -213,6 +228,9 @@ impl Tracker {
             split: WakeSplit::new(WakeConfig::split(), profile.wake_split_per_mps()),
             wake_last_t: f64::NEG_INFINITY,
             filter: new_filter(kind),
+            kind,
+            audio: VecDeque::new(),
+            gate_on_audio: false,
             config,
             site,
             array_index,
@@ -241,22 +259,80 @@ impl Tracker {
         &self.diagnostics
     }
 
-    /// Feeds one input (in time order; older inputs than the newest are dropped) and returns
-    /// the fixes of every output instant up to it.
+    /// Says that `array_id` sent audio over `[from_s, to_s]`: with [`Self::gate_on_audio`],
+    /// output instants get a fix only where the tracked array sent audio.
+    pub fn add_audio(&mut self, array_id: u16, from_s: f64, to_s: f64) {
+        if array_id != self.array_id() || !(from_s.is_finite() && to_s.is_finite()) {
+            return;
+        }
+        match self.audio.back_mut() {
+            Some(last) if from_s <= last.1 && to_s >= last.0 => {
+                *last = (last.0.min(from_s), last.1.max(to_s));
+            }
+            _ => self.audio.push_back((from_s, to_s)),
+        }
+        // Spans older than every instant still to come are no longer needed.
+        let keep_from = self.last_output.unwrap_or(f64::NEG_INFINITY) - 1.0;
+        while self.audio.len() > 1 && self.audio.front().is_some_and(|a| a.1 < keep_from) {
+            self.audio.pop_front();
+        }
+    }
+
+    /// Feeds one input of the tracked array (in time order; inputs older than the newest and
+    /// other arrays' inputs are dropped) and returns the fixes of every output instant before
+    /// it.
     pub fn push(&mut self, input: Input) -> Vec<Fix> {
         let t = input.t();
-        if !t.is_finite() || t + 1e-9 < self.latest_input_t {
+        let id = self.array_id();
+        let own = match &input {
+            Input::Bearing(b) => b.array_id == id,
+            Input::Spectrum(s) => s.array_id == id,
+        };
+        if !own || !t.is_finite() || t + 1e-9 < self.latest_input_t {
             return Vec::new();
         }
-        let fixes = self.advance_to(t);
+        let gap = t - self.latest_input_t > self.config.max_gap_s;
+        let fixes = if gap && self.latest_input_t.is_finite() {
+            // Nothing is invented across a silence: instants up to the last input, then the
+            // track restarts at this one.
+            let fixes = self.advance_to(self.latest_input_t + 1e-9);
+            self.next_output = Some((t / self.config.output_period_s).ceil() as i64);
+            self.restart();
+            fixes
+        } else {
+            self.advance_to(t)
+        };
         self.latest_input_t = t;
-        let id = self.array_id();
         match input {
-            Input::Bearing(b) if b.array_id == id => self.window.push(b),
-            Input::Spectrum(s) if s.array_id == id => self.add_spectrum(&s),
-            _ => {}
+            Input::Bearing(b) => self.window.push(b),
+            Input::Spectrum(s) => self.add_spectrum(&s),
         }
         fixes
+    }
+
+    /// Emits the fixes of every output instant before `t` (the intake promises no input of
+    /// the tracked array stamped before `t` is still to come).
+    pub fn advance(&mut self, t: f64) -> Vec<Fix> {
+        if !t.is_finite() || !self.latest_input_t.is_finite() {
+            return Vec::new();
+        }
+        // Not across a silence: the next input decides whether the track restarts.
+        self.advance_to(t.min(self.latest_input_t + self.config.max_gap_s))
+    }
+
+    /// Forgets the flight after a silence: everything but the hover calibration.
+    fn restart(&mut self) {
+        let c = &self.config;
+        self.window = DoaWindow::new(c.doa.clone());
+        self.classifier = MotionClassifier::new(c.motion.clone());
+        self.speed = SpeedIntegrator::new(&self.profile);
+        self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
+        self.split = WakeSplit::new(WakeConfig::split(), self.profile.wake_split_per_mps());
+        self.wake_last_t = f64::NEG_INFINITY;
+        self.filter = new_filter(self.kind);
+        self.spectra.clear();
+        self.last_output = None;
+        self.hover_run_s = 0.0;
     }
 
     /// Emits the fixes of every output instant up to and including the newest input.
@@ -269,21 +345,40 @@ impl Tracker {
         }
     }
 
-    /// Output instants strictly before `t`.
+    /// Fixes only where the tracked array reported audio ([`Self::add_audio`]), as the
+    /// intake does; without it every instant between inputs counts as heard (synthetic
+    /// inputs).
+    pub fn gate_on_audio(&mut self) {
+        self.gate_on_audio = true;
+    }
+
+    /// Whether the tracked array sent audio at `t`.
+    fn heard(&self, t: f64) -> bool {
+        !self.gate_on_audio || self.audio.iter().any(|a| a.0 <= t && t <= a.1)
+    }
+
+    /// Output instants strictly before `t`, those where the array sent audio.
     fn advance_to(&mut self, t: f64) -> Vec<Fix> {
         let period = self.config.output_period_s;
-        let next = *self.next_output.get_or_insert_with(|| (t / period).ceil() * period);
+        let mut k = *self.next_output.get_or_insert_with(|| (t / period).ceil() as i64);
         let mut fixes = Vec::new();
-        let mut k = 0u64;
-        let mut instant = next;
-        while instant < t {
-            if let Some(fix) = self.output(instant) {
-                fixes.push(fix);
+        loop {
+            let instant = k as f64 * period;
+            if instant >= t {
+                break;
             }
-            k += 1;
-            instant = next + k as f64 * period;
+            if self.heard(instant) {
+                if let Some(fix) = self.output(instant) {
+                    fixes.push(fix);
+                }
+                k += 1;
+                continue;
+            }
+            // Straight to the next audio heard (or to `t`), never instant by instant.
+            let next = self.audio.iter().map(|a| a.0).filter(|&a| a > instant).fold(t, f64::min);
+            k = (k + 1).max((next / period).ceil() as i64);
         }
-        self.next_output = Some(instant);
+        self.next_output = Some(k);
         fixes
     }
 
@@ -445,6 +540,7 @@ impl Tracker {
         let pc = &est.position_covariance;
         Some(Fix {
             t,
+            available: t,
             position: est.position,
             velocity: est.velocity,
             sigma: [

@@ -1,21 +1,25 @@
 //! `host-sim fly SCENARIO.toml [--filter paper|aim|both] [--out DIR]`: simulate, run every
-//! array's recording through the on-chip pipeline and the wire format (the bytes a board would
-//! send, decoded again), track, and compare with the truth.
+//! array's recording through the on-chip pipeline and the wire format into the bytes a board
+//! would send, then track from those bytes exactly as `aim replay DIR/frames-<id>.aimraw --site
+//! DIR/site.toml` does (the same [`aim_tracker::session::Session`], the frames in link order,
+//! nothing but the bytes and the site file), and compare with the truth.
 //!
-//! Prints the error summary (mean, median, p90, availability, motion-class accuracy) and writes
+//! Prints the error summary (mean, median, p90, availability, motion-class accuracy, latency)
+//! and the intake's statistics line, and writes
 //! `DIR/track.csv` (`t,x,y,z,vx,vy,vz,sigma_x,sigma_y,sigma_z,motion,los,truth_x,truth_y,truth_z,error`),
-//! `DIR/track.png` (track against truth), `DIR/site.toml`, `DIR/frames-<id>.aimraw` (replayable
-//! with `aim replay`) and `DIR/truth.csv`. With `--filter both` the tracks go to
-//! `DIR/paper/` and `DIR/aim/` from one simulation.
+//! `DIR/fixes.jsonl` (what `aim replay` prints for the same frames), `DIR/track.png` (track
+//! against truth), `DIR/site.toml`, `DIR/frames-<id>.aimraw` and `DIR/truth.csv`. With
+//! `--filter both` the tracks go to `DIR/paper/` and `DIR/aim/` from one simulation.
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 
 use aim_tracker::filter::FilterKind;
-use aim_tracker::intake::FrameConverter;
-use aim_tracker::observation::Input;
+use aim_tracker::intake::IntakeConfig;
+use aim_tracker::link::FrameSource;
 use aim_tracker::profile::Profile;
+use aim_tracker::session::Session;
 use aim_tracker::tracker::{Fix, Tracker, TrackerConfig};
 use host_sim::eval::{link, metrics, plot};
 use host_sim::scenario::Scenario;
@@ -51,6 +55,8 @@ pub(crate) struct TrackRun {
     pub fixes: Vec<Fix>,
     /// Its errors against the truth.
     pub summary: metrics::Summary,
+    /// Its fixes' latency.
+    pub latency: aim_tracker::session::FixStats,
 }
 
 /// Runs `host-sim fly`.
@@ -76,7 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for r in &runs {
         let s = &r.summary;
         println!(
-            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}",
+            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
             scenario.name,
             filter_name(r.kind),
             s.mean_m,
@@ -87,8 +93,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             s.due,
             100.0 * s.motion_accuracy,
             s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
+            r.latency.mean_latency_s,
+            r.latency.max_latency_s,
         );
-        let _ = r.fixes.len();
     }
     Ok(())
 }
@@ -112,44 +119,51 @@ pub(crate) fn track(
     std::fs::write(out.join("truth.toml"), sim.truth.to_toml()).context("writing truth.toml")?;
     let site = aim_tracker::site::Site::parse(&site_text, &site_path)?;
 
-    // Every array through the pipeline and the link.
-    let mut converter = FrameConverter::new(site.clone());
-    let mut inputs: Vec<Input> = Vec::new();
+    // Every array through the pipeline and the link, into the files a board's link would fill.
+    let mut raw_paths = Vec::new();
     for rec in &sim.arrays {
         eprintln!("array {}: on-chip pipeline …", rec.id);
         let bytes = link::link_bytes(rec, host_sim::DEFAULT_FULL_SCALE_PA)?;
         let raw_path = out.join(format!("frames-{}.aimraw", rec.id));
         std::fs::write(&raw_path, &bytes)
             .with_context(|| format!("writing {}", raw_path.display()))?;
-        let (frames, errors) = link::decode_frames(&bytes);
-        anyhow::ensure!(errors == 0, "array {}: {errors} frames failed to decode", rec.id);
-        inputs.extend(frames.iter().filter_map(|f| converter.convert(f)));
+        raw_paths.push((u16::from(rec.id), raw_path));
     }
-    inputs.sort_by(|a, b| a.t().total_cmp(&b.t()));
-    let (Some(first), Some(last)) = (inputs.first().map(Input::t), inputs.last().map(Input::t))
-    else {
-        anyhow::bail!("the pipeline produced no observation");
-    };
 
     let mut runs = Vec::new();
     for &kind in kinds {
         let config = TrackerConfig { output_period_s: period, ..TrackerConfig::default() };
-        let mut tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
-        let array_index = sim
-            .truth
-            .array_ids
+        let tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
+        let tracked = tracker.array_id();
+        let array_index =
+            sim.truth.array_ids.iter().position(|&id| u16::from(id) == tracked).unwrap_or(0);
+        // `aim replay frames-<id>.aimraw --site site.toml`: the bytes, in link order.
+        let (_, raw_path) = raw_paths
             .iter()
-            .position(|&id| u16::from(id) == tracker.array_id())
-            .unwrap_or(0);
+            .find(|(id, _)| *id == tracked)
+            .with_context(|| format!("no recording of array {tracked}"))?;
+        let name = raw_path.display().to_string();
+        let mut source = FrameSource::new(aim_tracker::link::open_input(&name)?);
+        let mut session = Session::new(tracker, site.clone(), IntakeConfig::default());
         let mut fixes = Vec::new();
-        for input in inputs.iter().cloned() {
-            fixes.extend(tracker.push(input));
-        }
-        fixes.extend(tracker.flush());
+        session
+            .track_reader(&mut source, &mut |f| {
+                fixes.push(f.clone());
+                Ok(())
+            })
+            .with_context(|| format!("tracking {name}"))?;
+        eprintln!("{}: {}", filter_name(kind), session.stats_json(source.stats()));
+        let Some((first, last)) = session.inputs_span() else {
+            anyhow::bail!("the pipeline produced no observation");
+        };
         let summary = metrics::evaluate(&fixes, &sim.truth, period, first, last, array_index);
+        let latency = session.fix_stats();
         let dir = if kinds.len() > 1 { out.join(filter_name(kind)) } else { out.to_path_buf() };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         write_track(&dir.join("track.csv"), &fixes, &sim.truth)?;
+        let jsonl: String = fixes.iter().map(|f| f.to_json() + "\n").collect();
+        std::fs::write(dir.join("fixes.jsonl"), jsonl).context("writing fixes.jsonl")?;
+        let tracker = session.tracker();
         plot::plot_track(&dir.join("track.png"), &fixes, &sim.truth, &sim.site)?;
         eprintln!(
             "{}: k_v calibrated to {:.4e} N/Hz² (profile {:.4e})",
@@ -157,7 +171,7 @@ pub(crate) fn track(
             tracker.k_v(),
             profile.k_v
         );
-        runs.push(TrackRun { kind, fixes, summary });
+        runs.push(TrackRun { kind, fixes, summary, latency });
     }
     Ok(runs)
 }

@@ -154,6 +154,7 @@ mod tests {
                 let t = k as f64 * 0.1;
                 Fix {
                     t,
+                    available: t,
                     position: [t, 0.5, 2.0],
                     velocity: [1.0, 0.0, 0.0],
                     sigma: [0.1; 3],

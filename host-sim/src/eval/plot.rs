@@ -339,6 +339,7 @@ mod tests {
             sigma: [0.0; 3],
             motion: aim_tracker::motion::MotionClass::Hover,
             los,
+            available: t,
         };
         let fixes =
             [fix(0.0, true), fix(0.1, false), fix(0.2, false), fix(0.3, true), fix(0.4, false)];

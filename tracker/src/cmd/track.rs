@@ -1,5 +1,6 @@
 //! `aim track --serial PORT [--baud N] --site SITE.toml`: track live from an array's serial
-//! link and print one JSON fix per output period (as `aim replay`), until interrupted.
+//! link and print one JSON fix per output period (as `aim replay`, through the same intake),
+//! until interrupted or the port goes away; then the statistics line on stderr.
 
 use aim_tracker::link::FrameSource;
 
@@ -16,7 +17,9 @@ pub struct Args {
 
 /// Runs `aim track`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (mut tracker, mut converter) = args.options.build()?;
+    let mut session = args.options.build()?;
     let mut source = FrameSource::new(args.link.open()?);
-    track_frames(&args.link.serial, &mut source, &mut tracker, &mut converter, true)
+    // Scripts and tests wait for this line before they send: the port is configured now.
+    eprintln!("tracking {} at {} baud", args.link.serial, args.link.baud);
+    track_frames(&args.link.serial, &mut source, &mut session, &args.options.site, true)
 }
