@@ -868,9 +868,10 @@ impl Scenario {
             + self.noise.len() as f64
             + self.diffuse_noise.as_ref().map_or(0.0, |d| d.directions as f64);
         let mics: usize = self.arrays.iter().map(|a| a.positions.len()).sum();
-        // Signal and second difference per emitter; the per-rotor signals while the sum is
-        // formed; one recording per microphone; the flight log (~400 B per control step).
-        let samples = n_src * (2.0 * emitters + rotors) + n_out * mics as f64;
+        // Signal and second difference per emitter (the per-rotor signals are dropped before
+        // the differences are made) and one recording per microphone; the flight log (~400 B
+        // per control step).
+        let samples = n_src * 2.0 * emitters + n_out * mics as f64;
         let log = (self.duration_s + spread + pre_roll) * self.render.control_rate_hz * 400.0;
         (samples * 4.0 + log) as u64
     }
