@@ -11,8 +11,8 @@
 //! yaw_deg = 0.0                # array +x from world east, counter-clockwise
 //! pitch_deg = 0.0              # optional: rotation about the array's y, degrees
 //! roll_deg = 0.0               # optional: rotation about the array's x, degrees
-//! geometry = "respeaker-6mic"  # optional, informative
-//! positions = [[0.0463, 0.0]]  # optional: microphone positions, array frame, m (informative)
+//! geometry = "respeaker-6mic"  # optional: one of KNOWN_GEOMETRIES ("custom" needs positions)
+//! positions = [[0.0463, 0.0], ...]  # optional: 4 to 8 microphone positions, array frame, m
 //! clock_offset_s = 0.0         # optional: true time of the array's sample 0, s
 //! clock_drift_ppm = 0.0        # optional: the array clock's rate error, ppm
 //!
@@ -23,7 +23,10 @@
 //!
 //! [[obstacle]]                 # optional, informative: name, min, max, loss_db
 //! ```
-//! This is a superset of the `site.toml` that `host-sim simulate` writes.
+//! This is a superset of the `site.toml` that `host-sim simulate` writes. Every number is
+//! range-checked at its line: positions within [`MAX_COORDINATE_M`] and inside the room (with
+//! [`ROOM_TOLERANCE_M`]), angles within ±360°, offsets within [`MAX_CLOCK_OFFSET_S`], drifts
+//! within [`MAX_CLOCK_DRIFT_PPM`], ids 0–255 (the wire's), sample rate 1–384 kHz.
 //! The array frame is x right, y forward, z up along the array normal; the rotation from the
 //! array frame to the world is R = Rz(yaw)·Ry(pitch)·Rx(roll).
 
