@@ -687,7 +687,7 @@ pub const MAX_SPL_DB: f64 = 150.0;
 
 /// `value` within `range`, else a message naming `key` (`path.loops 4000000000 must be 1 to
 /// 1000`); `key` leads the message so that [`key_line`] finds its line.
-fn within<T: PartialOrd + std::fmt::Display + Copy>(
+fn within<T: PartialOrd + std::fmt::Debug + Copy>(
     key: &str,
     value: T,
     range: std::ops::RangeInclusive<T>,
@@ -696,7 +696,7 @@ fn within<T: PartialOrd + std::fmt::Display + Copy>(
     if range.contains(&value) {
         Ok(value)
     } else {
-        Err(format!("{key} {value} must be {} to {} {unit}", range.start(), range.end()))
+        Err(format!("{key} {value:?} must be {:?} to {:?} {unit}", range.start(), range.end()))
     }
 }
 
@@ -714,7 +714,9 @@ fn check_path_file(p: &FilePath) -> Result<(), String> {
     within("path.loops", p.loops, 1..=MAX_LOOPS, "")?;
     if let Some(side) = p.side_m {
         if !(side > 0.0 && side <= MAX_SIDE_M) {
-            return Err(format!("path.side_m {side} must be positive and at most {MAX_SIDE_M} m"));
+            return Err(format!(
+                "path.side_m {side:?} must be positive and at most {MAX_SIDE_M} m"
+            ));
         }
     }
     if let Some(h) = p.height_m {
@@ -734,7 +736,7 @@ fn check_path_file(p: &FilePath) -> Result<(), String> {
     }
     if !(p.speed_mps > 0.0 && p.speed_mps <= 20.0) {
         return Err(format!(
-            "path.speed_mps {} must be positive and at most 20 m/s (what the drone model flies)",
+            "path.speed_mps {:?} must be positive and at most 20 m/s (what the drone model flies)",
             p.speed_mps
         ));
     }

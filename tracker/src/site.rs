@@ -206,7 +206,7 @@ fn array_pose(
         } else {
             Err(err(
                 v.span(),
-                format!("array {id}: {what} must be within ±{limit} {unit} (got {x})"),
+                format!("array {id}: {what} must be within ±{limit} {unit} (got {x:?})"),
             ))
         }
     };

@@ -34,7 +34,8 @@ pub struct Args {
 /// The deadline `--duration` sets, or why the value is refused.
 pub fn deadline(duration_s: Option<f64>, now: Instant) -> anyhow::Result<Option<Instant>> {
     let Some(s) = duration_s else { return Ok(None) };
-    let refuse = || anyhow::anyhow!("--duration must be 0 to {MAX_DURATION_S} s (a year), not {s}");
+    let refuse =
+        || anyhow::anyhow!("--duration must be 0 to {MAX_DURATION_S} s (a year), not {s:?}");
     if !(s.is_finite() && (0.0..=MAX_DURATION_S).contains(&s)) {
         return Err(refuse());
     }

@@ -93,7 +93,7 @@ pub struct Reconnect {
 /// (beyond 30 days) values.
 pub fn give_up_from_secs(seconds: f64, flag: &str) -> anyhow::Result<Duration> {
     if !(seconds.is_finite() && (0.0..=30.0 * 86_400.0).contains(&seconds)) {
-        anyhow::bail!("{flag} must be 0 to 2592000 seconds (30 days), not {seconds}");
+        anyhow::bail!("{flag} must be 0 to 2592000 seconds (30 days), not {seconds:?}");
     }
     Ok(Duration::from_secs_f64(seconds))
 }
