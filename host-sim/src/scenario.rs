@@ -444,7 +444,13 @@ impl Scenario {
             toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?
         };
         let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        let mut s = Self::from_file(file, stem).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        let mut s = Self::from_file(file, stem).map_err(|e| {
+            let text = std::fs::read_to_string(path).unwrap_or_default();
+            match key_line(&text, &e) {
+                Some(line) => anyhow!("{}:{line}: {e}", path.display()),
+                None => anyhow!("{}: {e}", path.display()),
+            }
+        })?;
         s.source = Some(path.to_path_buf());
         Ok(s)
     }
@@ -522,6 +528,7 @@ impl Scenario {
         let population = f.airframe.population()?;
 
         let p = &f.path;
+        check_path_file(p)?;
         let need = |v: Option<f64>, key: &str| {
             v.ok_or_else(|| format!("path.{key} is required for kind `{}`", p.kind))
         };
@@ -805,7 +812,7 @@ impl Scenario {
             return Err("truth_rate_hz must be positive and at most render.control_rate_hz".into());
         }
 
-        Ok(Self {
+        let scenario = Self {
             name: f.name.unwrap_or(stem),
             description: f.description,
             source: None,
@@ -824,8 +831,256 @@ impl Scenario {
             diffuse_noise,
             arrays,
             render,
-        })
+        };
+        scenario.check_limits()?;
+        Ok(scenario)
     }
+}
+
+/// Largest coordinate accepted anywhere in a scenario (waypoints, arrays, noise sources,
+/// obstacles), m.
+pub const MAX_COORDINATE_M: f64 = 10_000.0;
+/// Longest side of a room or of a square path, m.
+pub const MAX_SIDE_M: f64 = 1000.0;
+/// Most loops of a square path (the duration limit ends a run long before).
+pub const MAX_LOOPS: u32 = 1000;
+/// Most waypoints of a path.
+pub const MAX_WAYPOINTS: usize = 10_000;
+/// Most plane waves of the diffuse noise field (each is a full-length source signal).
+pub const MAX_DIFFUSE_DIRECTIONS: usize = 1024;
+/// Loudest level accepted for any source, dB SPL (beyond the threshold of pain; the
+/// microphones clip at 120 dB).
+pub const MAX_SPL_DB: f64 = 150.0;
+
+/// `value` within `range`, else a message naming `key` (`path.loops 4000000000 must be 1 to
+/// 1000`); `key` leads the message so that [`key_line`] finds its line.
+fn within<T: PartialOrd + std::fmt::Debug + Copy>(
+    key: &str,
+    value: T,
+    range: std::ops::RangeInclusive<T>,
+    unit: &str,
+) -> Result<T, String> {
+    if range.contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("{key} {value:?} must be {:?} to {:?} {unit}", range.start(), range.end()))
+    }
+}
+
+/// Every coordinate of `p` finite and within [`MAX_COORDINATE_M`].
+fn point(key: &str, p: &[f64]) -> Result<(), String> {
+    if p.iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M) {
+        Ok(())
+    } else {
+        Err(format!("{key} {p:?} must be finite and within {MAX_COORDINATE_M} m of the origin"))
+    }
+}
+
+/// The `[path]` table's numbers, checked before any waypoint is built from them.
+fn check_path_file(p: &FilePath) -> Result<(), String> {
+    within("path.loops", p.loops, 1..=MAX_LOOPS, "")?;
+    if let Some(side) = p.side_m {
+        if !(side > 0.0 && side <= MAX_SIDE_M) {
+            return Err(format!(
+                "path.side_m {side:?} must be positive and at most {MAX_SIDE_M} m"
+            ));
+        }
+    }
+    if let Some(h) = p.height_m {
+        within("path.height_m", h, -MAX_SIDE_M..=MAX_SIDE_M, "m")?;
+    }
+    if let Some(start) = p.start {
+        point("path.start", &start)?;
+    }
+    if let Some(points) = &p.points {
+        within("path.points", points.len(), 1..=MAX_WAYPOINTS, "waypoints")?;
+        for q in points {
+            point("path.points", q)?;
+        }
+    }
+    if let Some(q) = p.position {
+        point("path.position", &q)?;
+    }
+    if !(p.speed_mps > 0.0 && p.speed_mps <= 20.0) {
+        return Err(format!(
+            "path.speed_mps {:?} must be positive and at most 20 m/s (what the drone model flies)",
+            p.speed_mps
+        ));
+    }
+    within("path.max_accel_mps2", p.max_accel_mps2, 0.1..=20.0, "m/s²")?;
+    within("path.hover_start_s", p.hover_start_s, 0.0..=3600.0, "s")?;
+    within("path.corner_pause_s", p.corner_pause_s, 0.0..=3600.0, "s")?;
+    within("path.hover_end_s", p.hover_end_s, 0.0..=3600.0, "s")?;
+    if let Some(yaw) = p.yaw_deg {
+        within("path.yaw_deg", yaw, -360.0..=360.0, "degrees")?;
+    }
+    Ok(())
+}
+
+impl Scenario {
+    /// Range checks beyond each part's own `validate`: sizes, levels, inertias and counts that
+    /// would exhaust memory, overflow the physics or give NaN audio, and what the on-chip
+    /// pipeline (`aim_dsp::Config::validate`) would refuse only after the whole simulation.
+    fn check_limits(&self) -> Result<(), String> {
+        let d = &self.drone;
+        within("drone.mass_kg", d.mass_kg, 0.01..=100.0, "kg")?;
+        within("drone.arm_m", d.arm_m, 0.01..=5.0, "m")?;
+        within("drone.hover_rotor_hz", d.hover_rotor_hz, 10.0..=1000.0, "Hz")?;
+        within("drone.max_rotor_hz", d.max_rotor_hz, 10.0..=2000.0, "Hz")?;
+        within("drone.torque_to_thrust_m", d.torque_to_thrust_m, 1e-4..=1.0, "m")?;
+        for (i, &inertia) in d.inertia_kgm2.iter().enumerate() {
+            within(&format!("drone.inertia_kgm2[{i}]"), inertia, 1e-6..=100.0, "kg·m²")?;
+        }
+        within("drone.drag_h", d.drag_h, 0.0..=100.0, "N·s²/m²")?;
+        within("drone.drag_v", d.drag_v, 0.0..=100.0, "N·s²/m²")?;
+        within("drone.motor_time_constant_s", d.motor_time_constant_s, 1e-4..=10.0, "s")?;
+        within("drone.rotor_jitter", d.rotor_jitter, 0.0..=0.5, "")?;
+        within("drone.rotor_jitter_time_s", d.rotor_jitter_time_s, 1e-3..=100.0, "s")?;
+        within("drone.wake_loss_per_mps", d.wake_loss_per_mps, 0.0..=0.2, "per m/s")?;
+        within("drone.spl_1m_db", d.spl_1m_db, 0.0..=MAX_SPL_DB, "dB")?;
+        within("drone.harmonic_slope_db", d.harmonic_slope_db, -60.0..=20.0, "dB")?;
+        within("drone.shaft_line_db", d.shaft_line_db, -100.0..=20.0, "dB")?;
+        within("drone.broadband_db", d.broadband_db, -100.0..=20.0, "dB")?;
+        within("drone.level_exponent", d.level_exponent, 0.01..=10.0, "")?;
+        within("drone.blades", d.blades, 1..=8, "")?;
+        within("drone.bpf_harmonics", d.bpf_harmonics, 1..=64, "")?;
+        if let Some(room) = &self.room {
+            for (i, &l) in room.size_m.iter().enumerate() {
+                within(&format!("room.size_m[{i}]"), l, 0.1..=MAX_SIDE_M, "m")?;
+            }
+        }
+        for o in &self.obstacles {
+            point(&format!("obstacle.min (`{}`)", o.name), o.min.as_slice())?;
+            point(&format!("obstacle.max (`{}`)", o.name), o.max.as_slice())?;
+            within(&format!("obstacle.loss_db (`{}`)", o.name), o.loss_db, 0.0..=200.0, "dB")?;
+        }
+        for (k, n) in self.noise.iter().enumerate() {
+            point(&format!("noise[{k}].position"), n.position_m.as_slice())?;
+            within(&format!("noise[{k}].spl_db"), n.spl_db, -50.0..=MAX_SPL_DB, "dB")?;
+            within(&format!("noise[{k}].distance_m"), n.distance_m, 0.01..=1000.0, "m")?;
+        }
+        if let Some(dn) = &self.diffuse_noise {
+            within("diffuse_noise.spl_db", dn.spl_db, -50.0..=MAX_SPL_DB, "dB")?;
+            within("diffuse_noise.directions", dn.directions, 1..=MAX_DIFFUSE_DIRECTIONS, "")?;
+        }
+        for (k, a) in self.arrays.iter().enumerate() {
+            let key = |name: &str| format!("array[{k}].{name}");
+            point(&key("position"), a.position_m.as_slice())?;
+            if let Some(room) = &self.room {
+                if !room.contains(&a.position_m) {
+                    return Err(format!(
+                        "{} {:?} (array {}) is outside the room [0, 0, 0]..{:?}",
+                        key("position"),
+                        a.position_m.as_slice(),
+                        a.id,
+                        room.size_m
+                    ));
+                }
+            }
+            within(&key("yaw_deg"), a.yaw_rad.to_degrees(), -360.0..=360.0, "degrees")?;
+            within(&key("self_noise_db"), a.self_noise_db, -50.0..=120.0, "dB")?;
+            within(&key("gain_mismatch_db"), a.gain_mismatch_db, 0.0..=6.0, "dB")?;
+            within(&key("phase_mismatch_us"), a.phase_mismatch_us, 0.0..=100.0, "µs")?;
+            // What `fly` and `analyze` will run: the same configuration `eval::link` builds.
+            let positions: Vec<[f32; 2]> =
+                a.positions.iter().map(|p| [p[0] as f32, p[1] as f32]).collect();
+            aim_dsp::Geometry::from_positions(&positions)
+                .and_then(|g| aim_dsp::Config::new(g, self.sample_rate_hz).validate())
+                .map_err(|e| {
+                    format!(
+                        "{} (array {}): the on-chip pipeline refuses this array at {} Hz: {e}",
+                        key("positions"),
+                        a.id,
+                        self.sample_rate_hz
+                    )
+                })?;
+        }
+        if let Some(room) = &self.room {
+            let t_end = self.plan.duration_s();
+            let n = 200;
+            for i in 0..=n {
+                let p = self.plan.at(t_end * i as f64 / n as f64).position;
+                if !room.contains(&p) {
+                    return Err(format!(
+                        "path leaves the room [0, 0, 0]..{:?} (at {:?})",
+                        room.size_m,
+                        p.as_slice()
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Memory a simulation of this scenario needs at its peak, bytes (an estimate within
+    /// about 20 %): every source's signal and its second difference (f32 at the sample rate
+    /// over the duration plus the longest path's delay), every microphone's recording, and the
+    /// flight log at the control rate.
+    pub fn memory_estimate_bytes(&self) -> u64 {
+        let fs = f64::from(self.sample_rate_hz);
+        let offsets = self.arrays.iter().map(|a| a.clock.offset_s);
+        let spread = offsets.clone().fold(0.0f64, f64::max) - offsets.fold(0.0f64, f64::min);
+        // Pre-roll: the longest path (room diagonal times the reflection order) at 343 m/s.
+        let pre_roll = self.room.as_ref().map_or(0.5, |r| {
+            let diagonal = r.size_m.iter().map(|l| l * l).sum::<f64>().sqrt();
+            diagonal * (2.0 * f64::from(r.reflection_order) + 1.0) / 343.0 + 0.05
+        });
+        let n_src = (self.duration_s * 1.001 + spread + pre_roll + 0.1) * fs;
+        let n_out = self.duration_s * fs;
+        let rotors = self.drone.rotor_count() as f64;
+        let rotor_emitters = match self.render.rotor_sources {
+            RotorSources::Each => rotors,
+            RotorSources::Direct => rotors + 1.0,
+            RotorSources::Centre => 1.0,
+        };
+        let emitters = rotor_emitters
+            + self.noise.len() as f64
+            + self.diffuse_noise.as_ref().map_or(0.0, |d| d.directions as f64);
+        let mics: usize = self.arrays.iter().map(|a| a.positions.len()).sum();
+        // Signal and second difference per emitter (the per-rotor signals are dropped before
+        // the differences are made) and one recording per microphone; the flight log (~400 B
+        // per control step).
+        let samples = n_src * 2.0 * emitters + n_out * mics as f64;
+        let log = (self.duration_s + spread + pre_roll) * self.render.control_rate_hz * 400.0;
+        (samples * 4.0 + log) as u64
+    }
+}
+
+/// The line of `text` holding the key an error message starts with (`path.loops …`,
+/// `array[1].position …`, `duration_s …`): the first whitespace-separated word, as
+/// `table.key`, `table[k].key` (the k-th `[[table]]`) or a top-level `key`; None when the key
+/// is not in the text (a default, or set in a `base` file).
+pub fn key_line(text: &str, message: &str) -> Option<usize> {
+    let word = message.split_whitespace().next()?.trim_end_matches(':');
+    let (table, index, key) = match word.split_once('.') {
+        Some((table, key)) => match table.split_once('[') {
+            Some((t, rest)) => (t, rest.trim_end_matches(']').parse::<usize>().ok(), key),
+            None => (table, None, key),
+        },
+        None => ("", None, word),
+    };
+    let key = key.split('[').next()?;
+    let mut header = String::new();
+    let mut seen = std::collections::HashMap::<String, usize>::new();
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if let Some(name) = l.strip_prefix("[[").and_then(|r| r.split("]]").next()) {
+            header = name.trim().to_string();
+            *seen.entry(header.clone()).or_insert(0) += 1;
+            continue;
+        }
+        if let Some(name) = l.strip_prefix('[').and_then(|r| r.split(']').next()) {
+            header = name.trim().to_string();
+            continue;
+        }
+        let in_table =
+            header == table && index.is_none_or(|k| seen.get(table).copied() == Some(k + 1));
+        let is_key = l.strip_prefix(key).is_some_and(|rest| rest.trim_start().starts_with('='));
+        if in_table && is_key {
+            return Some(i + 1);
+        }
+    }
+    None
 }
 
 #[cfg(test)]

@@ -122,20 +122,34 @@ pub struct Fix {
 }
 
 impl Fix {
-    /// The fix as one JSON object (the `aim track`/`aim replay` contract).
+    /// The fix as one JSON object (the `aim track`/`aim replay` contract). A coordinate or
+    /// time that is not finite prints as `null` (JSON has no NaN): the line stays valid.
     pub fn to_json(&self) -> String {
         format!(
-            "{{\"t\":{:.3},\"available\":{:.3},\"x\":{:.3},\"y\":{:.3},\"z\":{:.3},\"motion\":\"{}\",\"los\":{}}}",
-            self.t,
-            self.available,
-            self.position[0],
-            self.position[1],
-            self.position[2],
+            "{{\"t\":{},\"available\":{},\"x\":{},\"y\":{},\"z\":{},\"motion\":\"{}\",\"los\":{}}}",
+            json_number(self.t),
+            json_number(self.available),
+            json_number(self.position[0]),
+            json_number(self.position[1]),
+            json_number(self.position[2]),
             self.motion.as_str(),
             self.los
         )
     }
 }
+
+/// `x` with three decimals, or `null` when it is not finite.
+fn json_number(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.3}")
+    } else {
+        "null".to_string()
+    }
+}
+
+/// Output instants whose [`Diagnostics`] a tracker keeps (the newest; older ones are dropped
+/// so that a tracker running for days stays in constant memory): 10 min at 10 Hz.
+pub const DIAGNOSTICS_KEPT: usize = 6000;
 
 /// Per-instant diagnostics, for evaluation.
 #[derive(Clone, Debug, PartialEq)]
@@ -179,7 +193,7 @@ pub struct Tracker {
     last_output: Option<f64>,
     hover_run_s: f64,
     latest_input_t: f64,
-    diagnostics: Vec<Diagnostics>,
+    diagnostics: VecDeque<Diagnostics>,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -240,7 +254,7 @@ impl Tracker {
             last_output: None,
             hover_run_s: 0.0,
             latest_input_t: f64::NEG_INFINITY,
-            diagnostics: Vec::new(),
+            diagnostics: VecDeque::new(),
         })
     }
 
@@ -254,9 +268,10 @@ impl Tracker {
         self.calibration.k_v()
     }
 
-    /// Diagnostics of every output instant so far.
-    pub fn diagnostics(&self) -> &[Diagnostics] {
-        &self.diagnostics
+    /// Diagnostics of the latest output instants, oldest first (at most
+    /// [`DIAGNOSTICS_KEPT`]).
+    pub fn diagnostics(&self) -> impl ExactSizeIterator<Item = &Diagnostics> {
+        self.diagnostics.iter()
     }
 
     /// Says that `array_id` sent audio over `[from_s, to_s]`: with [`Self::gate_on_audio`],
@@ -519,7 +534,10 @@ impl Tracker {
         let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
         let (cruise_speeds, wake_settled) = self.wake_speeds(t, motion, &mut speed);
         let los = doa.is_some_and(|d| d.los);
-        self.diagnostics.push(Diagnostics {
+        if self.diagnostics.len() >= DIAGNOSTICS_KEPT {
+            self.diagnostics.pop_front();
+        }
+        self.diagnostics.push_back(Diagnostics {
             doa,
             bpf_groups: groups,
             k_v: self.calibration.k_v(),

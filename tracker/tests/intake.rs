@@ -193,15 +193,20 @@ fn a_hello_contradicting_the_site_is_an_error_naming_both() {
     check_bounded(&frames[..80], &fixes);
 
     // The geometry too, against a site file that gives it.
-    let site_text = format!("{}positions = [[0.05, 0.0], [0.0, 0.05]]\n", common::SITE_TOML);
+    let site_text = format!(
+        "{}positions = [[0.05, 0.0], [0.0, 0.05], [-0.05, 0.0], [0.0, -0.05]]\n",
+        common::SITE_TOML
+    );
     let site = aim_tracker::site::Site::parse(&site_text, "site.toml".as_ref()).unwrap();
     let mut intake = aim_tracker::intake::Intake::new(site, IntakeConfig::default());
     let hello = |m: &[[f32; 2]]| Frame {
         header: Header { array_id: 1, seq: 0, sample_index: 0 },
         body: Body::Hello(Hello::new([0, 1, 0], 48_000, 1024, m)),
     };
-    assert!(intake.push(&hello(&[[0.05, 0.0], [0.0, 0.05]]), &mut |_| {}).is_ok());
-    let e = intake.push(&hello(&[[0.06, 0.0], [0.0, 0.05]]), &mut |_| {}).unwrap_err();
+    let square = [[0.05, 0.0], [0.0, 0.05], [-0.05, 0.0], [0.0, -0.05]];
+    assert!(intake.push(&hello(&square), &mut |_| {}).is_ok());
+    let moved = [[0.06, 0.0], [0.0, 0.05], [-0.05, 0.0], [0.0, -0.05]];
+    let e = intake.push(&hello(&moved), &mut |_| {}).unwrap_err();
     assert!(matches!(e, IntakeError::Geometry { .. }));
     let text = e.to_string();
     assert!(text.contains("0.06") && text.contains("0.05"), "{text}");

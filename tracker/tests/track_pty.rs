@@ -61,7 +61,8 @@ fn aim_track_on_a_pty_at_link_pace_equals_aim_replay() {
     let slave = pair.slave.try_clone().unwrap();
     drop(pair);
     let mut child = Command::new(env!("CARGO_BIN_EXE_aim"))
-        .args(["track", "--serial", path.to_str().unwrap(), "--site"])
+        // The end of the stream is the end of the link here (replug is link_unplug.rs's test).
+        .args(["track", "--reconnect", "false", "--serial", path.to_str().unwrap(), "--site"])
         .arg(&site)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

@@ -44,8 +44,14 @@ impl TrackOptions {
             Some(p) => Profile::load(p)?,
             None => Profile::dji_mini_2(),
         };
+        let period = aim_tracker::config::check_flag(
+            self.period,
+            "--period",
+            aim_tracker::config::PERIOD_RANGE_S,
+            "s",
+        )?;
         let config = TrackerConfig {
-            output_period_s: self.period,
+            output_period_s: period,
             array_id: self.array,
             ..TrackerConfig::default()
         };
