@@ -51,8 +51,6 @@ pub struct Args {
 pub(crate) struct TrackRun {
     /// The filter.
     pub kind: FilterKind,
-    /// Its fixes.
-    pub fixes: Vec<Fix>,
     /// Its errors against the truth.
     pub summary: metrics::Summary,
     /// Its fixes' latency.
@@ -171,7 +169,7 @@ pub(crate) fn track(
             tracker.k_v(),
             profile.k_v
         );
-        runs.push(TrackRun { kind, fixes, summary, latency });
+        runs.push(TrackRun { kind, summary, latency });
     }
     Ok(runs)
 }

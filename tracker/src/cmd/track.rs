@@ -6,8 +6,8 @@
 //! and tracking goes on when the port returns (`--reconnect`, `--give-up`). On Ctrl-C
 //! (status 130) or a port that does not return (status 3) the statistics are printed too.
 
-use aim_tracker::exit::{note, Interrupted};
-use aim_tracker::link::{self, FrameSource};
+use aim_tracker::exit::Interrupted;
+use aim_tracker::link::FrameSource;
 
 use super::replay::{track_frames, TrackOptions};
 
