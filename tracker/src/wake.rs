@@ -322,7 +322,13 @@ impl HoverPattern {
             runs[j].1 += r.1;
         }
         self.centres = runs.iter().map(|r| r.0 / r.1 as f64).collect();
-        self.split = two_means(|| self.heard.iter().copied()).map_or(0.0, |(lo, hi)| hi / lo - 1.0);
+        // A drone heard as one hover group has no imbalance to subtract (two-means would only
+        // split the noise, which cruise's two real groups do not).
+        self.split = if self.centres.len() >= 2 {
+            two_means(|| self.heard.iter().copied()).map_or(0.0, |(lo, hi)| hi / lo - 1.0)
+        } else {
+            0.0
+        };
     }
 
     /// Relative split high/low − 1 of the hover BPFs, two-means (0 before calibration).
@@ -666,5 +672,6 @@ mod tests {
         }
         assert_eq!(pattern.centres(), &[329.5]);
         assert_eq!(pattern.normalise(331.0), 331.0);
+        assert_eq!(pattern.split(), 0.0);
     }
 }
