@@ -12,10 +12,10 @@ use crate::filter::{new_filter, Filter, FilterKind, Step};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
-use crate::observation::{Input, Spectrum};
+use crate::observation::{BpfPeak, Input, Spectrum};
 use crate::profile::Profile;
 use crate::site::Site;
-use crate::wake::{WakeConfig, WakeSpeed, WakeSplit};
+use crate::wake::{HoverPattern, WakeConfig, WakeSpeed, WakeSplit};
 
 /// Standard deviation given to the integrated horizontal speed while the wake cue of a leg
 /// has not settled, m/s.
@@ -26,13 +26,14 @@ const UNSETTLED_SPEED_SIGMA_MPS: f64 = 1.0;
 struct BpfFrame {
     /// Time, s.
     t: f64,
-    /// Σ BPF² over all rotors, Hz² (hover's for a yaw split).
+    /// Σ BPF² over all rotors, Hz² (hover's for a yaw split), of the groups normalised by
+    /// the hover pattern.
     sum_sq: f64,
     /// Distinct rotor-speed groups heard (2 for a yaw split heard by one half).
     groups: usize,
     /// The groups are a yaw's odd/even split (see `TrackerConfig::yaw_split_hz`).
     yaw_split: bool,
-    /// The groups' BPFs, Hz (empty for a yaw split).
+    /// The groups' BPFs as heard (not normalised), Hz.
     hz: Vec<f64>,
 }
 
@@ -182,6 +183,10 @@ pub struct Tracker {
     split: Option<WakeSplit>,
     /// Time of the newest spectrum frame given to `wake` and `split`, s.
     wake_last_t: f64,
+    /// The hover BPF group pattern (static imbalance), calibrated while still.
+    pattern: HoverPattern,
+    /// Time of the newest spectrum frame the pattern learnt from, s.
+    pattern_last_t: f64,
     filter: Box<dyn Filter + Send>,
     kind: FilterKind,
     /// Index of the next output instant (instants are `k · output_period_s`).
@@ -241,6 +246,8 @@ impl Tracker {
             wake: WakeSpeed::new(WakeConfig::default(), profile.wake_excess_per_mps()),
             split: WakeSplit::new(WakeConfig::split(), profile.wake_split_per_mps()),
             wake_last_t: f64::NEG_INFINITY,
+            pattern: HoverPattern::default(),
+            pattern_last_t: f64::NEG_INFINITY,
             filter: new_filter(kind),
             kind,
             audio: VecDeque::new(),
@@ -344,6 +351,7 @@ impl Tracker {
         self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
         self.split = WakeSplit::new(WakeConfig::split(), self.profile.wake_split_per_mps());
         self.wake_last_t = f64::NEG_INFINITY;
+        self.pattern_last_t = f64::NEG_INFINITY;
         self.filter = new_filter(self.kind);
         self.spectra.clear();
         self.last_output = None;
@@ -416,6 +424,8 @@ impl Tracker {
             return (Vec::new(), false);
         }
         let hover = self.calibration.hover_sum_sq();
+        let hover_split = self.pattern.split();
+        self.split.iter_mut().for_each(|w| w.set_hover_split(hover_split));
         let mut frames = Vec::new();
         // A yaw split says nothing of the wake.
         for f in self.spectra.iter().filter(|f| f.t > since && f.t <= t && !f.yaw_split) {
@@ -447,13 +457,30 @@ impl Tracker {
     fn add_spectrum(&mut self, s: &Spectrum) {
         let c = &self.config;
         let reference = (self.calibration.hover_sum_sq() / self.profile.rotors() as f64).sqrt();
-        let groups = bpf_groups(
+        let heard = bpf_groups(
             &s.peaks,
             &self.profile,
             reference,
             c.min_relative_amplitude,
             c.min_separation_hz,
         );
+        // Each group normalised by its hover level (the static imbalance taken out), groups
+        // that then fall together merged again.
+        let mut normalised: Vec<BpfPeak> =
+            heard.iter().map(|g| BpfPeak { hz: self.pattern.normalise(g.hz), ..*g }).collect();
+        normalised.sort_by(|a, b| a.hz.total_cmp(&b.hz));
+        let mut groups: Vec<BpfPeak> = Vec::new();
+        for p in normalised {
+            match groups.last_mut() {
+                Some(g) if p.hz - g.hz < c.min_separation_hz => {
+                    let a = g.amplitude + p.amplitude;
+                    g.hz = (g.hz * g.amplitude + p.hz * p.amplitude) / a;
+                    g.amplitude = a;
+                }
+                _ => groups.push(p),
+            }
+        }
+        let hz: Vec<f64> = heard.iter().map(|g| g.hz).collect();
         let yaw_split = match groups.as_slice() {
             // Against the hover BPF only once a hover has calibrated it (the profile's may be
             // off by more than the threshold).
@@ -465,10 +492,9 @@ impl Tracker {
         };
         if yaw_split {
             let sum_sq = self.calibration.hover_sum_sq();
-            let frame = BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split, hz: Vec::new() };
+            let frame = BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split, hz };
             self.spectra.push_back(frame);
         } else if let Some(sum_sq) = sum_bpf_squared(&groups, self.profile.rotors()) {
-            let hz = groups.iter().map(|g| g.hz).collect();
             let frame = BpfFrame { t: s.t, sum_sq, groups: groups.len(), yaw_split, hz };
             self.spectra.push_back(frame);
         }
@@ -531,6 +557,17 @@ impl Tracker {
         } else {
             self.hover_run_s = 0.0;
         }
+        // The hover group pattern from the frames heard still: in hover, or before the pattern
+        // is known in a still "yaw" (the imbalance's two groups are what makes it one).
+        let still = motion == MotionClass::Hover
+            || (motion == MotionClass::Yaw && !self.pattern.is_calibrated());
+        if still && !excess_significant {
+            let since = self.pattern_last_t;
+            for f in self.spectra.iter().filter(|f| f.t > since && f.t <= t) {
+                self.pattern.learn(&f.hz);
+            }
+        }
+        self.pattern_last_t = self.spectra.back().map_or(self.pattern_last_t, |f| f.t.min(t));
         let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
         let (cruise_speeds, wake_settled) = self.wake_speeds(t, motion, &mut speed);
         let los = doa.is_some_and(|d| d.los);
