@@ -370,19 +370,16 @@ mod tests {
         .unwrap()
     }
 
+    /// Five seconds of hover at 2 m.
+    fn plan_hover() -> FlightPlan {
+        FlightPlan::new(&[Vector3::new(0.0, 0.0, 2.0)], 1.0, 1.0, 5.0, 0.0, 0.0, Heading::Fixed)
+            .unwrap()
+    }
+
     #[test]
     fn hover_balances_weight_at_164_hz() {
         let profile = DroneProfile { rotor_jitter: 0.0, ..DroneProfile::dji_mini_2() };
-        let plan = FlightPlan::new(
-            &[Vector3::new(0.0, 0.0, 2.0)],
-            1.0,
-            1.0,
-            5.0,
-            0.0,
-            0.0,
-            Heading::Fixed,
-        )
-        .unwrap();
+        let plan = plan_hover();
         let log = fly(
             &profile,
             &Airframe::nominal(4),
@@ -520,16 +517,7 @@ mod tests {
         let mut airframe = Airframe::nominal(4);
         airframe.cg_offset_m = [0.002, -0.001];
         airframe.thrust_factor = vec![1.02, 0.98, 1.0, 0.97];
-        let plan = FlightPlan::new(
-            &[Vector3::new(0.0, 0.0, 2.0)],
-            1.0,
-            1.0,
-            5.0,
-            0.0,
-            0.0,
-            Heading::Fixed,
-        )
-        .unwrap();
+        let plan = plan_hover();
         let log = fly(
             &profile,
             &airframe,
