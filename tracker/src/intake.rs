@@ -5,11 +5,13 @@
 //!
 //! - **a time base per boot** (an *epoch*): sample indices become host seconds through the site
 //!   file's clock offset and drift ([`crate::site::ArrayPose::sample_time`]) for the first boot.
-//!   The wire carries no boot counter, so a reboot shows as the sample index jumping back (a
-//!   restarted board counts from 0 again and sends a `Hello` at 0). Once
-//!   [`IntakeConfig::confirm_frames`] frames agree on the new count, a new epoch starts: the link
-//!   carries no wall time, so its first frame is placed [`IntakeConfig::epoch_gap_s`] after the
-//!   previous epoch's last audio (the real pause is unknown; the tracker restarts across it).
+//!   A reboot starts a new epoch in one of two ways: a `Hello` whose boot count differs from the
+//!   array's previous `Hello` (at once: everything the old boot left in the reorder stage is
+//!   released first), or, when that `Hello` was lost, the sample index jumping back (a restarted
+//!   board counts from 0 again) once [`IntakeConfig::confirm_frames`] frames agree on the new
+//!   count. The link carries no wall time, so the new epoch's first frame is placed
+//!   [`IntakeConfig::epoch_gap_s`] after the previous epoch's last audio (the real pause is
+//!   unknown; the tracker restarts across it).
 //! - **a plausibility window**: a frame must end no earlier than
 //!   [`IntakeConfig::window_behind_s`] before the newest audio and start no later than
 //!   [`IntakeConfig::window_ahead_s`] after it. A frame outside is held aside; if
@@ -85,8 +87,11 @@ pub struct IntakeStats {
     pub unknown_array: u64,
     /// `Hello` frames that agreed with the site file.
     pub hellos: u64,
-    /// Time bases started after an array's first (reboots: the sample index went back).
+    /// Time bases started after an array's first (reboots: a `Hello` with a new boot count, or
+    /// the sample index went back).
     pub new_epochs: u64,
+    /// Of [`Self::new_epochs`], those a `Hello` with a new boot count announced.
+    pub reboots_announced: u64,
     /// Silences the time base followed within one boot (the sample index jumped ahead).
     pub gaps: u64,
     /// Frames outside the expected window that no later frames confirmed: set aside.
@@ -169,6 +174,8 @@ struct ArrayState {
     held: Vec<Input>,
     /// Everything before this was released, s.
     released_until: f64,
+    /// Boot count of the array's latest `Hello`.
+    boot_count: Option<u32>,
 }
 
 /// The intake of the arrays of one site.
@@ -231,6 +238,22 @@ impl Intake {
             Body::Hello(h) => {
                 check_hello(id, h, state, &self.site, pose.mic_positions_m.as_slice())?;
                 self.stats.hellos += 1;
+                let rebooted = state.boot_count.is_some_and(|b| b != h.boot_count);
+                state.boot_count = Some(h.boot_count);
+                if let (true, Some(old)) = (rebooted, state.timeline) {
+                    let fs = f64::from(state.rate_hz.unwrap_or(DEFAULT_SAMPLE_RATE_HZ));
+                    let first = frame.header.sample_index;
+                    let last = pose.sample_time(old.newest_end as f64, fs) + old.shift_s;
+                    // The old boot's inputs all describe audio up to its last: release them.
+                    self.stats.inputs += release(state, id, last, sink);
+                    self.stats.out_of_window += state.pending.len() as u64;
+                    state.pending.clear();
+                    self.stats.new_epochs += 1;
+                    self.stats.reboots_announced += 1;
+                    let shift_s =
+                        last + self.config.epoch_gap_s - pose.sample_time(first as f64, fs);
+                    state.timeline = Some(Timeline { shift_s, newest_end: first });
+                }
                 0
             }
             Body::Doa(d) => d.span_samples,

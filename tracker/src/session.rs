@@ -149,6 +149,7 @@ impl Session {
                 "unknown_array": i.unknown_array,
                 "hellos": i.hellos,
                 "new_epochs": i.new_epochs,
+                "reboots_announced": i.reboots_announced,
                 "gaps": i.gaps,
                 "out_of_window": i.out_of_window,
                 "bad_span": i.bad_span,

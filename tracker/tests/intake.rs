@@ -317,3 +317,36 @@ proptest! {
         );
     }
 }
+
+#[test]
+fn a_hello_with_a_new_boot_count_starts_a_new_epoch_even_inside_the_window() {
+    // A board that crashes 0.8 s after start and boots again: the second boot's sample indices
+    // fall inside the first boot's plausibility window, so only the Hello's boot count tells.
+    let with_boot = |frames: Vec<Frame>, boot: u32| -> Vec<Frame> {
+        frames
+            .into_iter()
+            .map(|mut f| {
+                if let Body::Hello(h) = &mut f.body {
+                    h.boot_count = boot;
+                }
+                f
+            })
+            .collect()
+    };
+    let mut seq = 0;
+    let mut frames = with_boot(link(0, 38_400, &mut seq, 5), 1);
+    let first_boot = frames.len();
+    let mut seq2 = 0;
+    frames.extend(with_boot(link(0, 15 * FS, &mut seq2, 6), 2));
+    let (fixes, s, err) = run(&frames);
+    assert!(err.is_none(), "{err:?}");
+    let i = *s.intake_stats();
+    assert_eq!((i.new_epochs, i.reboots_announced, i.late), (1, 1, 0), "{i:?}");
+    // Nothing of the second boot is placed before the first boot's last audio and the gap.
+    let gap = IntakeConfig::default().epoch_gap_s;
+    let first_end = 38_400.0 / FS as f64;
+    assert!(fixes.iter().all(|f| f.t <= first_end + 1e-9 || f.t >= first_end + gap - 1e-9));
+    let after = fixes.iter().filter(|f| f.t >= first_end + gap).count();
+    assert!(after >= 140, "{after} fixes after the reboot");
+    check_bounded(&frames[first_boot..], &fixes[fixes.len() - after..]);
+}
