@@ -80,15 +80,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for r in &runs {
         let s = &r.summary;
         println!(
-            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
+            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, live mean {:.2} m, availability {:.1} % ({}/{}, {:.1} % within {} m), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
             scenario.name,
             filter_name(r.kind),
             s.mean_m,
             s.median_m,
             s.p90_m,
+            s.live_mean_m,
             100.0 * s.availability,
             s.fixes,
             s.due,
+            100.0 * s.good_availability,
+            host_sim::eval::metrics::GOOD_FIX_M,
             100.0 * s.motion_accuracy,
             s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
             r.latency.mean_latency_s,
