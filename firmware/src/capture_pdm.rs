@@ -26,9 +26,9 @@
 //!   (the kernel clock of `clocks`); 18.432 MHz (3 pairs) and 24.576 MHz (4 pairs) need the
 //!   factor 5³ in the PLL's M·P times MCKDIV (8 MHz = 2⁹·5⁶, 48 kHz·64 = 2¹⁴·3·5³), so with M = 5
 //!   (1.6 MHz reference; below 2 MHz only the 150–420 MHz VCO is allowed, RM0433 PLLxRGE and
-//!   embassy's `rcc/h.rs`) the VCO would be 460.8 or 614.4 MHz, and with M ∈ {1, 2, 4, 8} it
-//!   would be a multiple of 2.304 or 3.072 GHz: no exact 48 kHz for 6 microphones from the
-//!   ST-LINK's 8 MHz.
+//!   embassy's `rcc/h.rs`) the VCO would be 460.8 or 614.4 MHz, and with any other M (1–8, as
+//!   the reference must stay ≥ 1 MHz) it would be a multiple of 2.304 or 3.072 GHz; FRACN adds
+//!   only multiples of 1/8192. No exact 48 kHz for 6 microphones from the ST-LINK's 8 MHz.
 //!
 //! So this build supports **4 PDM microphones** (2 pairs, data lines D1 and D2, both clock
 //! outputs) at exactly 48 kHz; `pdm` with `mics-6` or `mics-8` stops the build with this reason.
@@ -51,8 +51,8 @@
 //! RM0433's description and has not yet been checked on a board (`tests/hil` `pdm_capture`).
 #[cfg(any(feature = "mics-8", feature = "mics-6"))]
 compile_error!(
-    "PDM microphones on the NUCLEO-H743ZI2: 4 at most (SAI1 has 3 PDM data lines on the \
-     STM32H743, and 3 pairs need an 18.432 MHz bit clock the 8 MHz HSE cannot give exactly); \
+    "PDM microphones on the NUCLEO-H743ZI2: 4 at most (no SAI1_D4 pin on any STM32H743 \
+     package, and 3 pairs need an 18.432 MHz bit clock the 8 MHz HSE cannot give exactly); \
      build with --no-default-features --features pdm,mics-4 (see firmware/src/capture_pdm.rs)"
 );
 
