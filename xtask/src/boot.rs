@@ -6,7 +6,9 @@
 //!    vector table, stack guard, DMA buffers);
 //! 2. an emulated start of the same ELF on the STM32H743 memory map
 //!    (`tools/boot/emulate_start.py`, the unicorn engine): from the reset vector to `main`'s
-//!    first peripheral access, failing on any access outside a mapped region.
+//!    first peripheral access, failing on any access outside a mapped region; then on through
+//!    the chip and clock probe to embassy's init, with and without an external clock and on
+//!    revisions V and Y (the probe must not hang and must choose HSE/HSI, 480/400 MHz).
 use std::{
     path::{Path, PathBuf},
     process::Command,
