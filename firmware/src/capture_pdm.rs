@@ -37,8 +37,9 @@
 //! pin; the STM32MP15x does: SAI1_D4 on PC5, e.g. Seeed's SoM-STM32MP157C pin table) and an
 //! audio clock with 5³ in it (a 24.576 MHz oscillator on I2S_CKIN, or a
 //! 12.288 MHz / 24.576 MHz HSE), or 8 TDM microphones on this board (the default build). The
-//! DFSDM is no way to 8 either: DFSDM1 has 8 input channels but 4 digital filters, so at most 4
-//! microphones are filtered at once.
+//! DFSDM is no way to 8 either: DFSDM1 has 8 input channels but 4 digital filters (metapac:
+//! interrupts DFSDM1_FLT0–FLT3, no register block), so at most 4 microphones are filtered at
+//! once.
 //!
 //! Pins, in their PDM roles (AF2): PE2 SAI1_CK1 (PDM clock, microphones 0–1), PE5 SAI1_CK2
 //! (PDM clock, microphones 2–3), PE6 SAI1_D1 (microphones 0 on the rising, 1 on the falling
