@@ -7,6 +7,10 @@
 //! - the PDM interface is configured as the module documents: PDMCR has PDMEN, MICNBR = 1 (two
 //!   pairs), CKEN1 and CKEN2; PE2/PE5/PE6/PE4 are on AF2 (SAI1_CK1/CK2/D1/D2), not the TDM
 //!   functions' AF6 the embassy constructor gives them;
+//! - both PDM clocks run: PE2 (CK1) and PE5 (CK2), sampled through GPIOE's IDR (the input
+//!   buffer stays on in alternate-function mode) 100 000 times with interrupts off, change level
+//!   in ≥ 10 % of the samples, and, when the sampling is faster than a half period (163 ns,
+//!   timed with the DWT), the counted edges give 3.072 MHz ± 2 %;
 //! - frame rate 48 000 Hz ± 0.1 % (chunks over `embassy_time`; one chunk in 5 s is 0.11 %, so
 //!   the window counts 937 or 938 chunks) and no DMA overrun;
 //! - every microphone alive and not stuck: a PDM line that is not driven (no microphone, a
@@ -26,8 +30,9 @@
 
 use aim_firmware::capture::{self, ChunkReceiver};
 use aim_firmware::capture_pdm::{self, PdmCapture, PDM_PAIRS, PDM_PINS_GPIOE, PDM_PIN_AF};
+use aim_firmware::clocks::sysclk_hz;
 use aim_firmware::config::{CHUNK_FRAMES, MIC_COUNT, SAMPLE_RATE_HZ, TDM_SLOTS};
-use aim_firmware::stats::{read, COUNTERS};
+use aim_firmware::stats::{read, CycleCounter, COUNTERS};
 use aim_hil_tests::{board, check_range, pass};
 use cortex_m_rt::entry;
 use embassy_executor::{Executor, InterruptExecutor};
@@ -45,9 +50,14 @@ const WINDOW: Duration = Duration::from_secs(5);
 const MIN_SPAN: i32 = 16;
 /// Largest |mean| of a microphone's samples over the window: a quarter of full scale, LSB.
 const MAX_MEAN: i64 = 1 << 21;
+/// The PDM clock on CK1 and CK2, Hz.
+const PDM_CLOCK_HZ: u64 = capture_pdm::PDM_CLOCK_HZ as u64;
+/// IDR samples per clock measurement.
+const SAMPLES: u32 = 100_000;
 
 static EXECUTOR_CAPTURE: InterruptExecutor = InterruptExecutor::new();
 static EXECUTOR_THREAD: StaticCell<Executor> = StaticCell::new();
+static CYCLES: StaticCell<CycleCounter> = StaticCell::new();
 
 #[interrupt]
 unsafe fn UART4() {
@@ -86,8 +96,51 @@ fn check_configuration() {
     const _: () = assert!(PDM_PIN_AF == 2);
 }
 
+/// Samples GPIOE pin `pin` `SAMPLES` times; returns the level changes and the cycles taken.
+fn sample_pin(cycles: &CycleCounter, pin: usize) -> (u32, u32) {
+    let idr = embassy_stm32::pac::GPIOE.idr();
+    let mut last = idr.read().idr(pin);
+    let mut changes = 0;
+    let start = cycles.now();
+    for _ in 0..SAMPLES {
+        let level = idr.read().idr(pin);
+        changes += u32::from(level != last);
+        last = level;
+    }
+    (changes, cycles.since(start))
+}
+
+/// Checks the PDM clock on CK1 (PE2) and CK2 (PE5) toggles, at 3.072 MHz where measurable.
+fn check_clocks(cycles: &CycleCounter) {
+    for (name, pin) in [("CK1 (PE2)", 2), ("CK2 (PE5)", 5)] {
+        let (changes, spent) = cortex_m::interrupt::free(|_| sample_pin(cycles, pin));
+        let interval_ps =
+            u64::from(spent) * 1_000_000_000_000 / u64::from(sysclk_hz()) / u64::from(SAMPLES);
+        defmt::info!(
+            "{=str}: {=u32} level changes in {=u32} samples, {=u64} ps per sample",
+            name,
+            changes,
+            SAMPLES,
+            interval_ps
+        );
+        check_range(
+            "PDM clock level changes",
+            u64::from(changes),
+            u64::from(SAMPLES / 10),
+            u64::from(SAMPLES),
+        );
+        // Half a period of 3.072 MHz is 162.8 ns: sampling faster counts every edge.
+        if interval_ps < 162_000 {
+            let hz = u64::from(changes) * u64::from(sysclk_hz()) / 2 / u64::from(spent.max(1));
+            check_range("PDM clock, Hz", hz, PDM_CLOCK_HZ * 98 / 100, PDM_CLOCK_HZ * 102 / 100);
+        } else {
+            defmt::warn!("sampling too slow to count PDM clock edges: frequency not checked");
+        }
+    }
+}
+
 #[embassy_executor::task]
-async fn consume(mut chunks: ChunkReceiver) {
+async fn consume(mut chunks: ChunkReceiver, cycles: &'static CycleCounter) {
     let start = Instant::now();
     let mut mics = [MicStats::default(); MIC_COUNT];
     let (mut chunks_seen, mut c0, mut o0, mut t0) = (0u32, 0u32, 0u32, start);
@@ -98,7 +151,9 @@ async fn consume(mut chunks: ChunkReceiver) {
         if !measuring && now - start >= SETTLE {
             measuring = true;
             check_configuration();
-            (c0, o0, t0) = (read(&COUNTERS.chunks_captured), read(&COUNTERS.dma_overruns), now);
+            check_clocks(cycles);
+            (c0, o0, t0) =
+                (read(&COUNTERS.chunks_captured), read(&COUNTERS.dma_overruns), Instant::now());
         }
         if measuring {
             chunks_seen += 1;
@@ -164,7 +219,8 @@ async fn consume(mut chunks: ChunkReceiver) {
 
 #[entry]
 fn main() -> ! {
-    let (p, _cycles) = board();
+    let (p, cycles) = board();
+    let cycles: &'static CycleCounter = CYCLES.init(cycles);
     let (chunk_tx, chunk_rx) = capture::chunk_queue();
     let pdm = PdmCapture::new(aim_firmware::sai_pins!(p));
 
@@ -173,6 +229,6 @@ fn main() -> ! {
     spawner.spawn(defmt::unwrap!(capture_pdm::capture_task(pdm, chunk_tx)));
 
     EXECUTOR_THREAD.init(Executor::new()).run(|spawner| {
-        spawner.spawn(defmt::unwrap!(consume(chunk_rx)));
+        spawner.spawn(defmt::unwrap!(consume(chunk_rx, cycles)));
     })
 }
