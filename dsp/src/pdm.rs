@@ -651,6 +651,65 @@ mod tests {
     }
 
     #[test]
+    fn eight_interleaved_microphones_each_match_the_reference_and_do_not_leak() {
+        // The firmware's layout at 8 microphones: byte p of microphone m at p · 8 + m, words in
+        // slot m of 8-slot frames (the fast path `decimate_mic::<8>`). Each microphone carries
+        // its own tone from its own modulator. Oracles: (1) every slot equals the one-microphone
+        // decimator on that microphone's bytes alone, bit for bit; (2) its SNR against the
+        // floating-point reference is > 70 dB, as for one microphone; (3) the other seven
+        // tones are absent from it (below −70 dB of its own), so no byte reaches a wrong slot.
+        const MICS: usize = 8;
+        // Whole numbers of cycles in the analysed 0.1 s − SKIP (4 600 outputs), so the
+        // least-squares amplitude of one tone sees none of another: 700 Hz + 900 Hz · m, rounded.
+        let analysed = FO * 0.1 - SKIP as f64;
+        let tones: [f64; MICS] = core::array::from_fn(|m| {
+            ((700.0 + 900.0 * m as f64) * analysed / FO).round() * FO / analysed
+        });
+        let streams: Vec<(Vec<bool>, Vec<u8>)> =
+            tones.iter().map(|&hz| tone(hz, 0.5, 0.1)).collect();
+        let periods = streams[0].1.len();
+        let mut interleaved = vec![0u8; periods * MICS];
+        for (m, (_, bytes)) in streams.iter().enumerate() {
+            for (p, &b) in bytes.iter().enumerate() {
+                interleaved[p * MICS + m] = b;
+            }
+        }
+        let mut d = PdmDecimator::new(MICS, MICS);
+        let frames = periods / BYTES_PER_OUTPUT;
+        let mut out = vec![0i32; frames * MICS];
+        assert_eq!(d.push(&interleaved, &mut out, MICS), Ok(frames));
+        for (m, (bits, bytes)) in streams.iter().enumerate() {
+            let slot: Vec<f64> = out
+                .iter()
+                .skip(m)
+                .step_by(MICS)
+                .map(|&w| f64::from(w) / f64::from(1 << 30))
+                .collect();
+            assert_eq!(slot, decimate(bytes), "microphone {m}: not the one-microphone output");
+            let ours = band(&slot[SKIP..slot.len() - 15]);
+            let reference = band(&reference(bits)[SKIP + 15..]);
+            let gain = ours.iter().zip(&reference).map(|(a, b)| a * b).sum::<f64>()
+                / ours.iter().map(|a| a * a).sum::<f64>();
+            let signal: f64 = reference.iter().map(|r| r * r).sum();
+            let error: f64 = ours.iter().zip(&reference).map(|(a, r)| (r - gain * a).powi(2)).sum();
+            let snr = 10.0 * (signal / error).log10();
+            let own = amplitude(&slot[SKIP..], tones[m]);
+            let leak = tones
+                .iter()
+                .enumerate()
+                .filter(|&(k, _)| k != m)
+                .map(|(_, &hz)| db(amplitude(&slot[SKIP..], hz) / own))
+                .fold(f64::NEG_INFINITY, f64::max);
+            eprintln!(
+                "microphone {m} ({:.1} Hz): SNR against the reference {snr:.1} dB, largest other tone {leak:.1} dB",
+                tones[m]
+            );
+            assert!(snr > 70.0, "microphone {m}: SNR {snr:.1} dB");
+            assert!(leak < -70.0, "microphone {m}: another microphone's tone at {leak:.1} dB");
+        }
+    }
+
+    #[test]
     fn bad_buffers_are_refused_with_the_reason() {
         let mut d = PdmDecimator::new(4, 8);
         let mut out = [0i32; 16];

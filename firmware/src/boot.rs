@@ -1,10 +1,12 @@
 //! What a start reports: why the board reset (RCC_RSR and the retained fault record), how many
-//! times it started since power-on, and who it is (the 96-bit unique ID). All of it goes into
+//! times it started since power-on, who it is (the 96-bit unique ID), and what it runs on (the
+//! silicon revision and the clock source and speed, [`crate::clocks::ClockPlan`]). All of it goes into
 //! every `Hello`, so a host notices a reboot (a new boot count, the sample index going back)
 //! and two boards claiming one array id (two unique IDs under one id).
 use aim_wire::{Hello, ResetCause};
 use embassy_stm32::pac;
 
+use crate::clocks::ClockPlan;
 use crate::fault::{self, Fault, MESSAGE_LEN};
 
 /// The start of this run, read once at start-up by [`StartReport::take`].
@@ -20,6 +22,9 @@ pub struct StartReport {
     pub message: heapless::String<MESSAGE_LEN>,
     /// The raw RCC_RSR flags, for the log.
     pub rsr: u32,
+    /// The silicon revision and the clock tree chosen for it; `embassy_stm32::init` takes
+    /// [`ClockPlan::embassy_config`].
+    pub clock: ClockPlan,
 }
 
 /// The reset flags of RCC_RSR, in the order they decide the cause (a power-on also sets the
@@ -50,7 +55,9 @@ fn cause_from_flags(rsr: pac::rcc::regs::Rsr, fault: Fault) -> ResetCause {
 
 impl StartReport {
     /// Reads and clears the reset flags, takes the previous run's record from the retained
-    /// cell and starts this run's (see [`fault::start_boot`]). Call once, first thing in `main`.
+    /// cell and starts this run's (see [`fault::start_boot`]), then reads the silicon revision
+    /// and starts the HSE ([`ClockPlan::probe`]). Call once, first thing in `main`, before
+    /// `embassy_stm32::init`.
     pub fn take() -> Self {
         let rsr = pac::RCC.rsr().read();
         pac::RCC.rsr().modify(|w| w.set_rmvf(true));
@@ -69,6 +76,7 @@ impl StartReport {
             unique_id: embassy_stm32::uid::uid(),
             message,
             rsr: rsr.0,
+            clock: ClockPlan::probe(),
         }
     }
 
@@ -78,6 +86,7 @@ impl StartReport {
         hello.boot_count = self.boot_count;
         hello.unique_id = self.unique_id;
         hello.set_panic_message(&self.message);
+        self.clock.fill_hello(hello);
     }
 
     /// Logs the report over defmt.
@@ -89,6 +98,7 @@ impl StartReport {
             self.boot_count,
             self.unique_id[..]
         );
+        self.clock.log();
         if !self.message.is_empty() {
             defmt::warn!("the previous run ended with: {=str}", self.message.as_str());
         }

@@ -12,27 +12,48 @@
 //! the raw bits to one DMA stream, and the decimation is `aim_dsp` code: tested on the host
 //! against a floating-point reference and bit-identical on the Cortex-M (QEMU parity).
 //!
-//! How many microphones, on this board: SAI1 on the STM32H743 brings out only 3 of the PDM
-//! interface's 4 data lines (RM0433, table "SAI interfaces" note; ST confirms SAI1/SAI4 serve
-//! at most 6 microphones), and the SAI's internal bit clock must be `2 · pairs · 3.072 MHz`:
-//! 12.288 MHz for 2 pairs is 61.44 MHz / 5 (the kernel clock of `clocks`), but 18.432 MHz
-//! (3 pairs) has no exact PLL setting from the board's 8 MHz (it needs 5³ in M·P with a VCO
-//! above 420 MHz). So this build supports **4 PDM microphones** (2 pairs, data lines D1 and
-//! D2, both clock outputs) at exactly 48 kHz; `pdm` with `mics-6` or `mics-8` stops the build
-//! with this reason. The decimator itself serves up to 8 (the QEMU cost check runs 8).
+//! How many microphones, on this board: **4**, for two reasons, each sufficient for 8.
+//! - SAI1's PDM interface on the STM32H743 has data lines D1, D2 and D3 only: its alternate
+//!   function map (stm32-metapac 21.0.0, the crate this firmware links, generated from ST's
+//!   CubeMX pin database: `src/chips/metadata_0448.rs` for STM32H743ZI/ZG, LQFP144, peripheral
+//!   `SAI1`) lists CK1 = PE2, CK2 = PE5, D1 = PB2/PC1/PD6/PE6, D2 = PE4, D3 = PC5/PF10, all AF2,
+//!   and **no D4 on any pin**; the other H743 packages (`metadata_0443` … `0447`: LQFP100 to
+//!   TFBGA240) list the same or fewer, so no STM32H743 package brings out D4. SAI4's PDM
+//!   interface has the same pins (AF10; `CK1` only on PE2, `CK2` only on PE5), so it cannot add a
+//!   fourth line beside SAI1's. 8 PDM microphones on SAI1 need D4; this chip has at most 6.
+//! - The SAI's internal bit clock must be `2 · pairs · 3.072 MHz` (one bit of every microphone
+//!   per PDM clock, 64 PDM clocks per 48 kHz sample): 12.288 MHz for 2 pairs is 61.44 MHz / 5
+//!   (the kernel clock of `clocks`); 18.432 MHz (3 pairs) and 24.576 MHz (4 pairs) need the
+//!   factor 5³ in the PLL's M·P times MCKDIV (8 MHz = 2⁹·5⁶, 48 kHz·64 = 2¹⁴·3·5³), so with M = 5
+//!   (1.6 MHz reference; below 2 MHz only the 150–420 MHz VCO is allowed, RM0433 PLLxRGE and
+//!   embassy's `rcc/h.rs`) the VCO would be 460.8 or 614.4 MHz, and with any other M (1–8, as
+//!   the reference must stay ≥ 1 MHz) it would be a multiple of 2.304 or 3.072 GHz; FRACN adds
+//!   only multiples of 1/8192. No exact 48 kHz for 6 microphones from the ST-LINK's 8 MHz.
 //!
-//! Pins (the TDM pins, in their PDM roles, AF2): PE2 SAI1_CK1 (PDM clock, microphones 0–1),
-//! PE5 SAI1_CK2 (PDM clock, microphones 2–3), PE6 SAI1_D1 (microphones 0 on the rising, 1 on
-//! the falling edge), PE4 SAI1_D2 (microphones 2 and 3). embassy-stm32 0.6 models neither the
-//! PDM pins nor SAI_PDMCR, so the block is built with the TDM constructor on the same pins
-//! (MCLK_A = CK1, SCK_A = CK2, SD_A = D1, FS_A = D2 share AF2) and PDMCR is written directly
+//! So this build supports **4 PDM microphones** (2 pairs, data lines D1 and D2, both clock
+//! outputs) at exactly 48 kHz; `pdm` with `mics-6` or `mics-8` stops the build with this reason.
+//! The decimator itself serves up to 8 (the QEMU cost check runs 8). An 8-microphone PDM board
+//! needs a part whose SAI brings out D4 (none of the chips in stm32-metapac 21 lists a SAI1 D4
+//! pin; the STM32MP15x does: SAI1_D4 on PC5, e.g. Seeed's SoM-STM32MP157C pin table) and an
+//! audio clock with 5³ in it (a 24.576 MHz oscillator on I2S_CKIN, or a
+//! 12.288 MHz / 24.576 MHz HSE), or 8 TDM microphones on this board (the default build). The
+//! DFSDM is no way to 8 either: DFSDM1 has 8 input channels but 4 digital filters (metapac:
+//! interrupts DFSDM1_FLT0–FLT3, no register block), so at most 4 microphones are filtered at
+//! once.
+//!
+//! Pins, in their PDM roles (AF2): PE2 SAI1_CK1 (PDM clock, microphones 0–1), PE5 SAI1_CK2
+//! (PDM clock, microphones 2–3), PE6 SAI1_D1 (microphones 0 on the rising, 1 on the falling
+//! edge), PE4 SAI1_D2 (microphones 2 and 3). embassy-stm32 0.6 models neither the PDM pins nor
+//! SAI_PDMCR, so the block is built with the TDM constructor on the same pins, which puts them
+//! on their TDM functions (MCLK_A, SCK_A, FS_A, SD_A: **AF6**, not AF2); [`set_pdm_pin_functions`]
+//! then switches the four pins to AF2 (CK1, CK2, D1, D2), and PDMCR is written directly
 //! between the SAI's reset and its configuration, as RM0433 requires (PDMEN before SAIEN).
 //! Byte order of a frame (D1 rising, D1 falling, D2 rising, D2 falling = microphones 0–3) is
-//! RM0433's description and has not yet been checked on a board.
+//! RM0433's description and has not yet been checked on a board (`tests/hil` `pdm_capture`).
 #[cfg(any(feature = "mics-8", feature = "mics-6"))]
 compile_error!(
-    "PDM microphones on the NUCLEO-H743ZI2: 4 at most (SAI1 has 3 PDM data lines on the \
-     STM32H743, and 3 pairs need an 18.432 MHz bit clock the 8 MHz HSE cannot give exactly); \
+    "PDM microphones on the NUCLEO-H743ZI2: 4 at most (no SAI1_D4 pin on any STM32H743 \
+     package, and 3 pairs need an 18.432 MHz bit clock the 8 MHz HSE cannot give exactly); \
      build with --no-default-features --features pdm,mics-4 (see firmware/src/capture_pdm.rs)"
 );
 
@@ -105,6 +126,24 @@ fn enable_pdm_interface() {
     });
 }
 
+/// The alternate function of SAI1_CK1/CK2/D1/D2 on PE2/PE5/PE6/PE4 (stm32-metapac 21,
+/// `metadata_0448.rs`; the TDM signals MCLK_A/SCK_A/SD_A/FS_A of the same pins are AF6).
+pub const PDM_PIN_AF: u8 = 2;
+/// The GPIOE pins of the PDM interface: CK1, CK2, D1, D2.
+pub const PDM_PINS_GPIOE: [usize; 4] = [2, 5, 6, 4];
+
+/// Moves PE2, PE4, PE5 and PE6 from the TDM functions embassy's constructor gave them (AF6) to
+/// the PDM interface's (AF2: CK1, D2, CK2, D1). Call after the SAI driver is built, every time
+/// (a rebuilt driver sets AF6 again). Their mode (alternate function), speed and pulls stay as
+/// embassy set them.
+pub fn set_pdm_pin_functions() {
+    embassy_stm32::pac::GPIOE.afr(0).modify(|w| {
+        for pin in PDM_PINS_GPIOE {
+            w.set_afr(pin, PDM_PIN_AF);
+        }
+    });
+}
+
 /// The PDM capture hardware: SAI1 block A in PDM mode on PE2/PE5 (CK1/CK2), PE6/PE4 (D1/D2),
 /// DMA1 stream 0, the DMA ring, the bytes of one chunk and the decimator.
 pub struct PdmCapture {
@@ -155,6 +194,7 @@ impl PdmCapture {
             Irqs,
             pdm_sai_config(),
         );
+        set_pdm_pin_functions();
         if let Err(error) = sai.start() {
             return error;
         }

@@ -39,7 +39,7 @@ unsafe fn UART4() {
 fn main() -> ! {
     // First: the reset flags and the retained fault record, before anything can overwrite them.
     let start = StartReport::take();
-    let p = embassy_stm32::init(clocks::embassy_config());
+    let p = embassy_stm32::init(start.clock.embassy_config());
     let Some(core) = cortex_m::Peripherals::take() else {
         panic!("core peripherals taken twice");
     };
@@ -49,12 +49,13 @@ fn main() -> ! {
     }
     start.log();
     defmt::info!(
-        "aim-firmware {}: array {}, {} mics, {} Hz, SAI bit clock {} Hz",
+        "aim-firmware {}: array {}, {} mics, {} Hz, SAI bit clock {} Hz, core {} Hz",
         env!("CARGO_PKG_VERSION"),
         config::array_id(&start.unique_id),
         config::MIC_COUNT,
         config::SAMPLE_RATE_HZ,
-        clocks::SAI_BIT_CLOCK_HZ
+        clocks::SAI_BIT_CLOCK_HZ,
+        clocks::sysclk_hz()
     );
 
     aim_firmware::freeze_watchdog_in_debug();

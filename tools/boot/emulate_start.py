@@ -17,6 +17,18 @@ peripheral register: from there on the firmware talks to hardware this model doe
 initialisation, the FPU enable -- has run on the real memory map. It fails on an unmapped
 access, a CPU exception, or when neither happens within the instruction limit.
 
+Then the chip and clock probe (`aim_firmware::clocks::ClockPlan::probe`) that runs before
+`embassy_stm32::init`: the run goes on from main's first peripheral access to embassy's first
+register access (DBGMCU_CR), once per case below, with two registers given values (the rest
+of the peripheral space stays plain memory):
+- DBGMCU_IDCODE reads `REV_ID << 16 | 0x450` (revision V 0x2003, or revision Y 0x1003);
+- RCC_CR reads HSERDY = HSEON (an external clock that starts at once), or HSERDY = 0 (no
+  clock on OSC_IN: the probe must give up after its timeout instead of hanging).
+Each case must reach embassy's init within the instruction limit; the probe must read the
+IDCODE; HSEON must be on at that point with a clock and off without one (the fallback to the
+HSI); where the image keeps the core-clock variable (`clocks::SYSCLK`), it must hold 480 MHz
+for revision V and 400 MHz for revision Y.
+
 usage: emulate_start.py ELF [ELF ...]      exit 0 when every image reaches main's first
                                            peripheral access, 1 otherwise.
 """
@@ -45,6 +57,13 @@ PERIPHERALS = ("PERIPH", 0x4000_0000, 0x2000_0000)
 PPB = ("PPB", 0xE000_0000, 0x10_0000)
 INSTRUCTION_LIMIT = 20_000_000
 FLASH_START = 0x0800_0000
+DBGMCU_IDCODE = 0x5C00_1000
+DBGMCU_CR = 0x5C00_1004
+RCC_CR = 0x5802_4400
+HSEON, HSERDY = 1 << 16, 1 << 17
+# (revision id, external clock present, expected core clock in Hz)
+PROBE_CASES = [(0x2003, True, 480_000_000), (0x2003, False, 480_000_000),
+               (0x1003, True, 400_000_000)]
 
 
 def region_name(address):
@@ -54,7 +73,9 @@ def region_name(address):
     return "unmapped"
 
 
-def emulate(path):
+def emulate(path, case=None):
+    """The start of `path` to main's first peripheral access (case None), or, for a probe
+    case `(rev_id, hse, sysclk)`, on to embassy's init; returns a failure message or None."""
     with open(path, "rb") as f:
         elf = ELFFile(f)
         symbols = {s.name: s["st_value"] for s in elf.get_section_by_name(".symtab").iter_symbols()}
@@ -63,6 +84,7 @@ def emulate(path):
     if "main" not in symbols:
         return f"{path}: no `main` symbol"
     main = symbols["main"] & ~1
+    sysclk_var = next((v for n, v in symbols.items() if "6clocks6SYSCLK" in n), None)
 
     uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
     uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M7)
@@ -80,19 +102,37 @@ def emulate(path):
 
     sp = int.from_bytes(uc.mem_read(FLASH_START, 4), "little")
     reset = int.from_bytes(uc.mem_read(FLASH_START + 4, 4), "little")
-    state = {"main": False, "done": None, "fault": None, "count": 0}
+    state = {"main": False, "done": None, "fault": None, "count": 0, "idcode": False,
+             "init": False}
 
     def on_code(uc, address, size, _):
         state["count"] += 1
         if address == main and not state["main"]:
             state["main"] = True
-            print(f"  reached main at {address:#010x} after {state['count']} instructions")
+            if case is None:
+                print(f"  reached main at {address:#010x} after {state['count']} instructions")
 
     def on_peripheral(uc, access, address, size, value, _):
-        if state["main"] and state["done"] is None:
+        if not state["main"]:
+            return
+        if state["done"] is None:
             pc = uc.reg_read(UC_ARM_REG_PC)
             kind = "write" if access == UC_HOOK_MEM_WRITE else "access"
             state["done"] = f"main's first peripheral {kind}: {address:#010x} at pc {pc:#010x}"
+            if case is None:
+                uc.emu_stop()
+                return
+        rev_id, hse, _ = case
+        # A read hook runs before the read: what it writes is what the code reads.
+        if access != UC_HOOK_MEM_WRITE and address == DBGMCU_IDCODE:
+            state["idcode"] = True
+            uc.mem_write(DBGMCU_IDCODE, ((rev_id << 16) | 0x450).to_bytes(4, "little"))
+        elif access != UC_HOOK_MEM_WRITE and RCC_CR <= address < RCC_CR + 4:
+            cr = int.from_bytes(uc.mem_read(RCC_CR, 4), "little")
+            cr = (cr | HSERDY) if hse and cr & HSEON else (cr & ~HSERDY)
+            uc.mem_write(RCC_CR, cr.to_bytes(4, "little"))
+        elif address == DBGMCU_CR and state["idcode"]:
+            state["init"] = True
             uc.emu_stop()
 
     def on_unmapped(uc, access, address, size, value, _):
@@ -125,6 +165,24 @@ def emulate(path):
     if state["fault"]:
         where = "before main" if not state["main"] else "after main"
         return f"{path}: {where}: {state['fault']}"
+    if case is not None:
+        rev_id, hse, sysclk = case
+        label = f"probe (REV_ID {rev_id:#06x}, {'with' if hse else 'without'} HSE)"
+        if not state["init"]:
+            return (f"{path}: {label}: embassy's init not reached within {INSTRUCTION_LIMIT} "
+                    f"instructions (IDCODE read: {state['idcode']})")
+        hseon = bool(int.from_bytes(uc.mem_read(RCC_CR, 4), "little") & HSEON)
+        if hseon != hse:
+            return f"{path}: {label}: HSEON is {'on' if hseon else 'off'} at embassy's init"
+        note = ""
+        if sysclk_var is not None:
+            chosen = int.from_bytes(uc.mem_read(sysclk_var, 4), "little")
+            if chosen != sysclk:
+                return f"{path}: {label}: core clock {chosen} Hz, expected {sysclk}"
+            note = f", core clock {chosen} Hz"
+        print(f"  {label}: embassy's init reached after {state['count']} instructions, "
+              f"HSE {'on' if hseon else 'off (HSI fallback)'}{note}")
+        return None
     if state["done"]:
         print(f"  {state['done']}: start-up ok")
         return None
@@ -137,7 +195,13 @@ def main(paths):
     if not paths:
         print(__doc__.strip().splitlines()[-2], file=sys.stderr)
         return 2
-    failures = [f for f in map(emulate, paths) if f]
+    failures = []
+    for path in paths:
+        failure = emulate(path)
+        if failure is None:
+            failures.extend(f for f in (emulate(path, case) for case in PROBE_CASES) if f)
+        else:
+            failures.append(failure)
     for failure in failures:
         print(f"emulated start FAILED: {failure}", file=sys.stderr)
     return 1 if failures else 0

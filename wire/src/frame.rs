@@ -78,8 +78,20 @@ impl Kind {
         match self {
             // version 3 + rate u32 5 + block u16 3 + count 1 + 8 mics x 2 x i16 3
             // + reset cause 1 + boot count u32 5 + unique id 12 + message length 1 + message
+            // + chip revision u16 3 + clock source 1 + sysclk u32 5
             Kind::Hello => {
-                3 + 5 + 3 + 1 + MAX_MICS * 2 * 3 + 1 + 5 + UNIQUE_ID_LEN + 1 + MAX_PANIC_MESSAGE
+                3 + 5
+                    + 3
+                    + 1
+                    + MAX_MICS * 2 * 3
+                    + 1
+                    + 5
+                    + UNIQUE_ID_LEN
+                    + 1
+                    + MAX_PANIC_MESSAGE
+                    + 3
+                    + 1
+                    + 5
             }
             // span u32 5 + azimuth i16 3 + zenith u16 3 + residual u16 3 + quality 1 + pairs 1
             Kind::Doa => 5 + 3 + 3 + 3 + 1 + 1,
@@ -180,6 +192,20 @@ pub struct Hello {
     /// `file:line message`, cut to [`MAX_PANIC_MESSAGE`] bytes at a character boundary; empty
     /// when the last reset was not a panic.
     pub panic_message: heapless::String<MAX_PANIC_MESSAGE>,
+    /// The chip's silicon revision as the chip reports it (STM32: REV_ID of DBGMCU_IDCODE,
+    /// e.g. `0x2003` = revision V, `0x1003` = revision Y; [`stm32h7_revision_name`]); 0: not
+    /// reported. Appended after `panic_message` (rule 3) with [`Hello::clock_source`] and
+    /// [`Hello::sysclk_hz`]; the three are sent only when one of them is set, so a `Hello`
+    /// without them (simulation, older firmware) keeps its bytes. Fields appended after them
+    /// later must send them (zeros allowed) first.
+    #[serde(skip)]
+    pub chip_revision: u16,
+    /// Where the core and audio clocks come from: a [`ClockSource`] code (0: not reported).
+    #[serde(skip)]
+    pub clock_source: u8,
+    /// Core clock the firmware runs at, Hz (0: not reported).
+    #[serde(skip)]
+    pub sysclk_hz: u32,
 }
 
 /// The array id a board derives from its chip unique ID when no id was set for it: 1 + the
@@ -208,6 +234,69 @@ struct HelloStart {
     boot_count: u32,
     unique_id: [u8; UNIQUE_ID_LEN],
     panic_message: heapless::String<MAX_PANIC_MESSAGE>,
+}
+
+/// The fields appended to [`Hello`] for the chip and clock report (sent only when set).
+#[derive(Serialize, Deserialize)]
+pub(crate) struct HelloClock {
+    pub(crate) chip_revision: u16,
+    pub(crate) clock_source: u8,
+    pub(crate) sysclk_hz: u32,
+}
+
+/// Where a board's clocks come from, as [`Hello::clock_source`] reports it. The codes are
+/// pinned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+#[non_exhaustive]
+pub enum ClockSource {
+    /// Not reported (older firmware, simulation).
+    Unknown = 0,
+    /// The external clock in bypass mode (NUCLEO: the ST-LINK's 8 MHz): the sample rate is as
+    /// exact as that crystal.
+    HseBypass = 1,
+    /// The internal RC oscillator, because the external clock did not start: the sample rate
+    /// is only as exact as the RC oscillator's trim (a fault to fix, reported so a host knows).
+    Hsi = 2,
+}
+
+impl ClockSource {
+    /// The source of a code, or `None` for a code this version does not know.
+    pub fn from_code(code: u8) -> Option<ClockSource> {
+        match code {
+            0 => Some(ClockSource::Unknown),
+            1 => Some(ClockSource::HseBypass),
+            2 => Some(ClockSource::Hsi),
+            _ => None,
+        }
+    }
+
+    /// The code on the wire.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// Lower-case name, as printed by `aim frames`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ClockSource::Unknown => "unknown",
+            ClockSource::HseBypass => "hse-bypass",
+            ClockSource::Hsi => "hsi",
+        }
+    }
+}
+
+/// The STM32H742/743/750/753 revision letter of a DBGMCU_IDCODE REV_ID (ST errata sheet
+/// ES0392: `0x1001` Z, `0x1003` Y, `0x2001` X, `0x2003` V), or `None` for another value.
+/// Revision V is the one that runs at 480 MHz; the earlier ones stop at 400 MHz.
+pub const fn stm32h7_revision_name(rev_id: u16) -> Option<&'static str> {
+    match rev_id {
+        0x1001 => Some("Z"),
+        0x1003 => Some("Y"),
+        0x2001 => Some("X"),
+        0x2003 => Some("V"),
+        _ => None,
+    }
 }
 
 /// Why a board started, as [`Hello::reset_cause`] reports it. The codes are pinned.
@@ -318,9 +407,10 @@ impl Hello {
         }
     }
 
-    /// Decodes a payload; the start-up fields default when absent (older firmware).
+    /// Decodes a payload; the start-up fields and the chip and clock report default when
+    /// absent (older firmware, simulation).
     pub(crate) fn from_payload(payload: &[u8]) -> postcard::Result<Hello> {
-        let (base, start, _) = base_and_appended::<HelloBase, HelloStart>(payload)?;
+        let (base, start, rest) = base_and_appended::<HelloBase, HelloStart>(payload)?;
         let mut hello = Hello {
             firmware_version: base.firmware_version,
             sample_rate_hz: base.sample_rate_hz,
@@ -334,7 +424,29 @@ impl Hello {
             hello.unique_id = s.unique_id;
             hello.panic_message = s.panic_message;
         }
+        if !rest.is_empty() {
+            let (clock, _) = postcard::take_from_bytes::<HelloClock>(rest)?;
+            hello.chip_revision = clock.chip_revision;
+            hello.clock_source = clock.clock_source;
+            hello.sysclk_hz = clock.sysclk_hz;
+        }
         Ok(hello)
+    }
+
+    /// The chip and clock report, when it is to be sent (any of its fields set).
+    pub(crate) fn clock_report(&self) -> Option<HelloClock> {
+        (self.chip_revision != 0 || self.clock_source != 0 || self.sysclk_hz != 0).then_some(
+            HelloClock {
+                chip_revision: self.chip_revision,
+                clock_source: self.clock_source,
+                sysclk_hz: self.sysclk_hz,
+            },
+        )
+    }
+
+    /// The clock source, or `None` for a code this version does not know.
+    pub fn clock_source(&self) -> Option<ClockSource> {
+        ClockSource::from_code(self.clock_source)
     }
 
     /// The reset cause, or `None` for a code this version does not know.

@@ -3,8 +3,8 @@
 mod common;
 
 use aim_wire::{
-    decode, reserved, Body, DecodeError, Deframer, Frame, Kind, LinkStats, ResetCause,
-    MAX_ENCODED_LEN, MAX_RAW_LEN, PROTOCOL_VERSION,
+    decode, reserved, stm32h7_revision_name, Body, ClockSource, DecodeError, Deframer, Frame, Kind,
+    LinkStats, ResetCause, MAX_ENCODED_LEN, MAX_RAW_LEN, PROTOCOL_VERSION,
 };
 use common::{raw, reframe, sample_frames, strip_crc, wire, worst_case};
 use proptest::prelude::*;
@@ -39,7 +39,7 @@ fn max_encoded_size_per_kind() {
     // Declared worst cases (computed by hand in `Kind::max_payload_len`) against real encodings
     // of frames with every varint at its widest.
     let expected = [
-        (Kind::Hello, 147, 150),
+        (Kind::Hello, 156, 159),
         (Kind::Doa, 36, 39),
         (Kind::Peaks, 67, 70),
         (Kind::Health, 95, 98),
@@ -51,8 +51,8 @@ fn max_encoded_size_per_kind() {
         assert_eq!(kind.max_raw_len(), raw_len, "{kind:?} declared raw");
         assert_eq!(kind.max_encoded_len(), wire_len, "{kind:?} declared wire");
     }
-    assert_eq!(MAX_RAW_LEN, 147);
-    assert_eq!(MAX_ENCODED_LEN, 150);
+    assert_eq!(MAX_RAW_LEN, 156);
+    assert_eq!(MAX_ENCODED_LEN, 159);
 }
 
 const GOLDEN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden");
@@ -141,6 +141,39 @@ fn hello_and_health_of_older_firmware_decode_with_the_appended_fields_at_their_d
     let body = strip_crc(&raw(&frames[0])).to_vec();
     let (out, _) = deframe_all(&reframe(&body[..body.len() - 10]));
     assert_eq!(out, [Err(DecodeError::Payload(Some(Kind::Hello)))]);
+}
+
+#[test]
+fn the_chip_and_clock_report_is_appended_only_when_set_and_decodes_back() {
+    // A Hello without the report (simulation, firmware before it) keeps its bytes: the golden
+    // `hello-sample.hex` above is such a frame. With the report, three fields follow the panic
+    // message: chip revision 0x2003 (LEB128 83 40), clock source 1, sysclk 480 000 000
+    // (LEB128 80 f0 f0 e4 01).
+    let frames = sample_frames();
+    let plain = strip_crc(&raw(&frames[0])).to_vec();
+    let mut with_report = frames[0].clone();
+    let Body::Hello(h) = &mut with_report.body else { unreachable!() };
+    h.chip_revision = 0x2003;
+    h.clock_source = ClockSource::HseBypass.code();
+    h.sysclk_hz = 480_000_000;
+    assert_eq!(h.clock_source(), Some(ClockSource::HseBypass));
+    let body = strip_crc(&raw(&with_report)).to_vec();
+    assert_eq!(&body[..plain.len()], &plain[..]);
+    assert_eq!(&body[plain.len()..], &[0x83, 0x40, 0x01, 0x80, 0xf0, 0xf0, 0xe4, 0x01]);
+    let (out, _) = deframe_all(&reframe(&body));
+    assert_eq!(out, [Ok(with_report)]);
+    // Cut inside the report: malformed, not silently defaulted.
+    let (out, _) = deframe_all(&reframe(&body[..body.len() - 2]));
+    assert_eq!(out, [Err(DecodeError::Payload(Some(Kind::Hello)))]);
+    // Codes and names are pinned; the revision letters are ES0392's.
+    let sources: Vec<_> = [0u8, 1, 2, 3]
+        .iter()
+        .map(|&c| ClockSource::from_code(c).map(|s| (s.code(), s.name())))
+        .collect();
+    assert_eq!(sources, [Some((0, "unknown")), Some((1, "hse-bypass")), Some((2, "hsi")), None]);
+    assert_eq!(stm32h7_revision_name(0x2003), Some("V"));
+    assert_eq!(stm32h7_revision_name(0x1003), Some("Y"));
+    assert_eq!(stm32h7_revision_name(0x0000), None);
 }
 
 #[test]
@@ -255,8 +288,12 @@ fn unknown_version_is_skipped_and_counted() {
 
 #[test]
 fn appended_payload_fields_are_ignored() {
-    // Rule 3: a later firmware appends fields; this version reads the prefix it knows.
-    for frame in sample_frames() {
+    // Rule 3: a later firmware appends fields; this version reads the prefix it knows. (A
+    // Hello's later fields follow the chip and clock report, which is then always sent.)
+    for mut frame in sample_frames() {
+        if let Body::Hello(h) = &mut frame.body {
+            (h.chip_revision, h.clock_source, h.sysclk_hz) = (0x2003, 1, 480_000_000);
+        }
         let mut longer = strip_crc(&raw(&frame)).to_vec();
         longer.extend_from_slice(&[0x05, 0x7F, 0x00, 0x01]);
         let (out, _) = deframe_all(&reframe(&longer));

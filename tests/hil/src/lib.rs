@@ -26,10 +26,14 @@ pub fn check_range(what: &str, value: u64, low: u64, high: u64) {
     defmt::info!("ok {=str}: {=u64} in [{=u64}, {=u64}]", what, value, low, high);
 }
 
-/// Brings the board up exactly as the firmware does: clocks (checked), I-cache, MPU stack
-/// guard, DWT.
+/// Brings the board up exactly as the firmware does: silicon revision and HSE probed
+/// (`ClockPlan::probe`: 480 MHz on revision V, 400 MHz before it; HSE bypass or HSI), clocks
+/// (checked), I-cache, MPU stack guard, DWT. Timing checks use
+/// `aim_firmware::clocks::sysclk_hz()`, the core clock chosen here.
 pub fn board() -> (embassy_stm32::Peripherals, aim_firmware::stats::CycleCounter) {
-    let p = embassy_stm32::init(aim_firmware::clocks::embassy_config());
+    let plan = aim_firmware::clocks::ClockPlan::probe();
+    let p = embassy_stm32::init(plan.embassy_config());
+    plan.log();
     let Some(core) = cortex_m::Peripherals::take() else {
         defmt::panic!("FAIL core peripherals already taken");
     };

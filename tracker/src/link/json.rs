@@ -62,6 +62,10 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
             "boot_count": p.boot_count,
             "unique_id": crate::link::boards::unique_id_hex(&p.unique_id),
             "panic_message": p.panic_message.as_str(),
+            "chip_revision": format!("{:#06x}", p.chip_revision),
+            "chip_revision_name": aim_wire::stm32h7_revision_name(p.chip_revision),
+            "clock_source": p.clock_source().map_or("unknown", |c| c.name()),
+            "sysclk_hz": p.sysclk_hz,
         }),
         Body::Doa(p) => json!({
             "azimuth_deg": f64::from(p.azimuth_cdeg) / 100.0,
@@ -175,5 +179,23 @@ mod tests {
         let v = frame(&f, None);
         assert_eq!(v["bpf_hz"], json!(187.5));
         assert_eq!(v["peaks"], json!([{"hz":187.5,"amp_db":-20.3,"harmonicity":1.0}]));
+    }
+
+    #[test]
+    fn hello_reports_the_chip_revision_and_the_clock() {
+        let mut hello = aim_wire::Hello::new([0, 1, 0], 48_000, 1024, &[]);
+        let f = Frame { header: Header::default(), body: Body::Hello(hello.clone()) };
+        let v = frame(&f, None);
+        assert_eq!(
+            (&v["chip_revision"], &v["chip_revision_name"], &v["clock_source"], &v["sysclk_hz"]),
+            (&json!("0x0000"), &Value::Null, &json!("unknown"), &json!(0))
+        );
+        (hello.chip_revision, hello.clock_source, hello.sysclk_hz) = (0x1003, 2, 400_000_000);
+        let f = Frame { header: Header::default(), body: Body::Hello(hello) };
+        let v = frame(&f, None);
+        assert_eq!(
+            (&v["chip_revision"], &v["chip_revision_name"], &v["clock_source"], &v["sysclk_hz"]),
+            (&json!("0x1003"), &json!("Y"), &json!("hsi"), &json!(400_000_000))
+        );
     }
 }

@@ -119,6 +119,9 @@ pub fn worst_case(kind: Kind) -> Frame {
             unique_id: [u8::MAX; UNIQUE_ID_LEN],
             // 0x7F is the longest character whose byte COBS and postcard leave alone.
             panic_message: core::iter::repeat_n('\u{7f}', MAX_PANIC_MESSAGE).collect(),
+            chip_revision: u16::MAX,
+            clock_source: u8::MAX,
+            sysclk_hz: u32::MAX,
         }),
         Kind::Doa => Body::Doa(Doa {
             span_samples: u32::MAX,
@@ -179,6 +182,9 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
             panic_message: (0..rng.below(MAX_PANIC_MESSAGE / 4 + 1))
                 .map(|_| char::from_u32(rng.u64() as u32 % 0x11_0000).unwrap_or('\u{fffd}'))
                 .collect(),
+            chip_revision: small(rng) as u16,
+            clock_source: rng.byte(),
+            sysclk_hz: small(rng),
         }),
         1 => Body::Doa(Doa {
             span_samples: small(rng),

@@ -16,7 +16,7 @@
 #![no_main]
 
 use aim_firmware::capture::{self, ChunkReceiver, SaiCapture};
-use aim_firmware::clocks::SYSCLK_HZ;
+use aim_firmware::clocks::sysclk_hz;
 use aim_firmware::stats::CycleCounter;
 use aim_hil_tests::{board, check_range, pass};
 use cortex_m_rt::entry;
@@ -71,7 +71,7 @@ async fn measure(cycles: &'static CycleCounter) {
 
     let (changes, spent) = cortex_m::interrupt::free(|_| sample_pe2(cycles));
     let interval_ps =
-        u64::from(spent) * 1_000_000_000_000 / u64::from(SYSCLK_HZ) / u64::from(SAMPLES);
+        u64::from(spent) * 1_000_000_000_000 / u64::from(sysclk_hz()) / u64::from(SAMPLES);
     defmt::info!(
         "MCKEN on: {=u32} level changes in {=u32} samples, {=u64} ps per sample",
         changes,
@@ -86,7 +86,7 @@ async fn measure(cycles: &'static CycleCounter) {
     );
     // One MCLK half period is 40.7 ns: sampling faster counts every edge.
     if interval_ps < 40_000 {
-        let hz = u64::from(changes) * u64::from(SYSCLK_HZ) / 2 / u64::from(spent.max(1));
+        let hz = u64::from(changes) * u64::from(sysclk_hz()) / 2 / u64::from(spent.max(1));
         check_range("MCLK frequency, Hz", hz, MCLK_HZ * 98 / 100, MCLK_HZ * 102 / 100);
     } else {
         defmt::warn!("sampling too slow to count MCLK edges: frequency not checked");

@@ -44,7 +44,7 @@ unsafe fn UART4() {
 /// Busy-waits `ms` with interrupts off: the capture task cannot run.
 fn stall_capture(ms: u64) {
     cortex_m::interrupt::free(|_| {
-        let cycles = aim_firmware::clocks::SYSCLK_HZ as u64 / 1000 * ms;
+        let cycles = u64::from(aim_firmware::clocks::sysclk_hz()) / 1000 * ms;
         // `delay` takes at least the cycles asked for; in chunks that fit its u32.
         for _ in 0..ms {
             cortex_m::asm::delay((cycles / ms) as u32);

@@ -91,7 +91,7 @@ fn recurse(depth: u32) -> u32 {
 #[entry]
 fn main() -> ! {
     let start = StartReport::take();
-    let p = embassy_stm32::init(aim_firmware::clocks::embassy_config());
+    let p = embassy_stm32::init(start.clock.embassy_config());
     let Some(core) = cortex_m::Peripherals::take() else { fail("core peripherals") };
     let _cycles = aim_firmware::init_core(core);
     start.log();
@@ -104,6 +104,9 @@ fn main() -> ! {
             check(hello.boot_count == start.boot_count, "Hello: boot count");
             check(hello.panic_message.is_empty(), "Hello: no panic message");
             check(hello.unique_id == embassy_stm32::uid::uid(), "Hello: unique id");
+            check(hello.chip_revision == start.clock.revision, "Hello: chip revision");
+            check(hello.clock_source == start.clock.source.code(), "Hello: clock source");
+            check(hello.sysclk_hz == aim_firmware::clocks::sysclk_hz(), "Hello: core clock");
             defmt::info!("step 3: panic on purpose");
             panic!("deliberate panic");
         }
