@@ -1,5 +1,6 @@
 //! `host-sim fly SCENARIO.toml [--filter paper|aim|both] [--out DIR]`: simulate, run every
-//! array's recording through the on-chip pipeline and the wire format into the bytes a board
+//! array's recording (block by block as it is rendered, never held whole; memory refused up
+//! front past `--max-memory-mb` as `host-sim simulate` does) through the on-chip pipeline and the wire format into the bytes a board
 //! would send, then track from those bytes exactly as `aim replay DIR/frames-<id>.aimraw --site
 //! DIR/site.toml` does (the same [`aim_tracker::session::Session`], the frames in link order,
 //! nothing but the bytes and the site file), and compare with the truth.
@@ -45,6 +46,9 @@ pub struct Args {
     /// Worker threads of the simulation (0: all cores).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Refuse scenarios whose simulation needs more memory than this, MB (1 MB = 10⁶ bytes).
+    #[arg(long, default_value_t = 4000)]
+    max_memory_mb: u64,
 }
 
 /// What one tracker run gave.
@@ -64,6 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         other => vec![other.parse().map_err(anyhow::Error::msg).context("--filter")?],
     };
     let scenario = Scenario::load(&args.scenario)?;
+    crate::cmd::simulate::check_memory(&scenario, args.max_memory_mb)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("fly-{}", scenario.name)));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let profile = match &args.profile {
@@ -71,12 +76,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => Profile::dji_mini_2(),
     };
 
+    // The audio goes through every array's pipeline as it is rendered (never held whole).
     let progress = host_sim::progress_bar("simulating");
-    let sim =
-        host_sim::simulate_with(&scenario, &host_sim::Options { threads: args.threads }, &progress)
-            .with_context(|| format!("simulating {}", args.scenario.display()))?;
+    let (sim, links) = link::simulate_links(
+        &scenario,
+        &host_sim::Options { threads: args.threads },
+        &progress,
+        host_sim::DEFAULT_FULL_SCALE_PA,
+    )
+    .with_context(|| format!("simulating {}", args.scenario.display()))?;
     progress.finish_and_clear();
-    let runs = track(&sim, &out, &profile, &kinds, args.period)?;
+    let runs = track(&sim, &links, &out, &profile, &kinds, args.period)?;
     for r in &runs {
         let s = &r.summary;
         println!(
@@ -99,10 +109,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// Everything `host-sim fly` does after simulating, shared with `host-sim bench`: writes the
-/// site and truth files and every array's frame bytes into `out`, runs them through the
-/// tracker with each filter of `kinds` (fixes every `period` s) and compares with the truth.
+/// site and truth files and every array's frame bytes (`links`, in the simulation's array
+/// order, from [`link::simulate_links`]) into `out`, runs them through the tracker with each
+/// filter of `kinds` (fixes every `period` s) and compares with the truth.
 pub(crate) fn track(
     sim: &host_sim::Simulation,
+    links: &[Vec<u8>],
     out: &Path,
     profile: &Profile,
     kinds: &[FilterKind],
@@ -119,11 +131,9 @@ pub(crate) fn track(
 
     // Every array through the pipeline and the link, into the files a board's link would fill.
     let mut raw_paths = Vec::new();
-    for rec in &sim.arrays {
-        eprintln!("array {}: on-chip pipeline …", rec.id);
-        let bytes = link::link_bytes(rec, host_sim::DEFAULT_FULL_SCALE_PA)?;
+    for (rec, bytes) in sim.arrays.iter().zip(links) {
         let raw_path = out.join(format!("frames-{}.aimraw", rec.id));
-        std::fs::write(&raw_path, &bytes)
+        std::fs::write(&raw_path, bytes)
             .with_context(|| format!("writing {}", raw_path.display()))?;
         raw_paths.push((u16::from(rec.id), raw_path));
     }
