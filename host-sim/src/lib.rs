@@ -334,6 +334,8 @@ pub fn simulate_to(
         gain: f32,
         noise_rms: f64,
         seed: u64,
+        /// The microphone's fixed output when dead (0) or stuck, Pa.
+        fault: Option<f32>,
     }
     let mut jobs = Vec::new();
     for (ai, a) in scenario.arrays.iter().enumerate() {
@@ -353,6 +355,13 @@ pub fn simulate_to(
                 gain: 10f64.powf(gain_db / 20.0) as f32,
                 noise_rms: sound::spl_to_rms_pa(a.self_noise_db),
                 seed: rng.random(),
+                fault: if a.dead_mics.contains(&m) {
+                    Some(0.0)
+                } else if a.stuck_mics.contains(&m) {
+                    Some(array::STUCK_PA)
+                } else {
+                    None
+                },
             });
         }
     }
@@ -396,6 +405,9 @@ pub fn simulate_to(
         }
         for y in out.iter_mut() {
             *y = *y * job.gain + (g.sample() * job.noise_rms) as f32;
+        }
+        if let Some(v) = job.fault {
+            out.fill(v);
         }
         progress.inc(n as u64);
     };

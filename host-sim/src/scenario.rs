@@ -46,7 +46,8 @@
 //! [diffuse_noise] spl_db, low_hz [100], high_hz [8000], directions [32]
 //! [[array]]   id, geometry ["respeaker-6mic"] or positions = [[x, y], ...], position = [x, y, z],
 //!             yaw_deg [0], clock_offset_s [0], clock_drift_ppm [0], self_noise_db [35],
-//!             gain_mismatch_db [0.3], phase_mismatch_us [2]
+//!             gain_mismatch_db [0.3], phase_mismatch_us [2], dead_mics [[]] (indices of
+//!             microphones that output 0), stuck_mics [[]] (indices stuck at a constant 5 Pa)
 //! [render]    rotor_sources = "each" | "direct" | "centre" ["direct"], block_samples [128],
 //!             control_rate_hz [1000], diffraction_ref_hz [500], absorption [true]
 //! ```
@@ -263,6 +264,10 @@ struct FileArray {
     gain_mismatch_db: f64,
     #[serde(default = "d_phase_mm")]
     phase_mismatch_us: f64,
+    #[serde(default)]
+    dead_mics: Vec<usize>,
+    #[serde(default)]
+    stuck_mics: Vec<usize>,
 }
 fn d_self_noise() -> f64 {
     35.0
@@ -787,7 +792,19 @@ impl Scenario {
                 self_noise_db: a.self_noise_db,
                 gain_mismatch_db: a.gain_mismatch_db,
                 phase_mismatch_us: a.phase_mismatch_us,
+                dead_mics: a.dead_mics.clone(),
+                stuck_mics: a.stuck_mics.clone(),
             };
+            if let Some(m) =
+                cfg.dead_mics.iter().chain(&cfg.stuck_mics).find(|&&m| m >= cfg.positions.len())
+            {
+                return Err(format!(
+                    "array {}: dead_mics/stuck_mics name microphone {m}, but it has {} (0..{})",
+                    a.id,
+                    cfg.positions.len(),
+                    cfg.positions.len()
+                ));
+            }
             cfg.validate()?;
             arrays.push(cfg);
         }

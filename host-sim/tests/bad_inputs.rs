@@ -65,6 +65,8 @@ fn every_scenario_input_of_the_issue_is_refused_by_key() {
         (edit("preset = \"dji-mini-2\"", "preset = \"dji-mini-2\"\nspl_1m_db = 1e5"), "drone.spl_1m_db"),
         // The DSP runs at 16 and 48 kHz only: `fly` and `analyze` would refuse it afterwards.
         (edit("sample_rate_hz = 48000", "sample_rate_hz = 44100"), "on-chip pipeline refuses this array at 44100 Hz"),
+        // A microphone fault on a microphone the array does not have.
+        (edit("position = [3.0, 0.5, 0.05]", "position = [3.0, 0.5, 0.05]\ndead_mics = [6]"), "name microphone 6, but it has 6"),
         (
             edit("position = [3.0, 0.5, 0.05]", "position = [3.0, 0.5, 0.05]\npositions = [[0.0, 0.0], [0.5, 0.0], [0.0, 0.5], [0.5, 0.5]]"),
             "on-chip pipeline refuses",

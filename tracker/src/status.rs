@@ -16,8 +16,14 @@
 //! signal (dead, or stuck at a constant that the front end's high-pass removes) makes every
 //! pair it belongs to incoherent, so the fit loses those n − 1 of the n(n−1)/2 pairs on
 //! every frame. [`MicHealth`] flags an array whose recent fits all used at most
-//! n(n−1)/2 − (n−1) pairs; which microphone it is needs a wire field (per-microphone RMS level
-//! in `Health`, or a bit mask of the pairs used in `Doa`) that the firmware does not send yet.
+//! n(n−1)/2 − (n−1) pairs (host-sim's `dead_mics` test: 10 of 15 on every fit, a healthy array
+//! 15). Two things need a wire field the firmware does not send yet: *which* microphone it is,
+//! and a microphone *stuck* at a constant, whose pairs still carry weight in every fit (PHAT
+//! normalises the constant's spectral leakage into a "signal"). The fields that would do it:
+//! in `Health`, per microphone the RMS level over the interval (`mic_rms_cdbfs: [i16; n]`,
+//! 0.01 dBFS; dead: far below the others; stuck: AC level near zero with a DC offset, so also
+//! `mic_dc_cdbfs`); or in `Doa`, a bit mask of the pairs used (`pairs_mask: u32`, 28 pairs of
+//! 8 microphones): the microphone common to every dropped pair is the dead one.
 use std::collections::BTreeMap;
 
 use aim_wire::{Body, Frame, Health, LinkStats};
