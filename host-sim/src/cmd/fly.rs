@@ -88,22 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     progress.finish_and_clear();
     let runs = track(&sim, &links, &out, &profile, &kinds, args.period)?;
     for r in &runs {
-        let s = &r.summary;
-        println!(
-            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
-            scenario.name,
-            filter_name(r.kind),
-            s.mean_m,
-            s.median_m,
-            s.p90_m,
-            100.0 * s.availability,
-            s.fixes,
-            s.due,
-            100.0 * s.motion_accuracy,
-            s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
-            r.latency.mean_latency_s,
-            r.latency.max_latency_s,
-        );
+        println!("{}", summary_line(&scenario.name, r));
     }
     Ok(())
 }
@@ -184,6 +169,34 @@ pub(crate) fn track(
     Ok(runs)
 }
 
+/// The line `fly` prints for one filter's run. Without any fix to compare there is no error
+/// to state (issue 17: it printed "mean -0.00 m, median NaN m"): it says so instead.
+pub(crate) fn summary_line(name: &str, r: &TrackRun) -> String {
+    let s = &r.summary;
+    if s.fixes == 0 {
+        return format!(
+            "{name} {}: no fix to compare with the truth (0 of {} due)",
+            filter_name(r.kind),
+            s.due
+        );
+    }
+    format!(
+        "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
+        name,
+        filter_name(r.kind),
+        s.mean_m,
+        s.median_m,
+        s.p90_m,
+        100.0 * s.availability,
+        s.fixes,
+        s.due,
+        100.0 * s.motion_accuracy,
+        s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
+        r.latency.mean_latency_s,
+        r.latency.max_latency_s,
+    )
+}
+
 /// The filter's name on the command line and in output paths.
 pub(crate) fn filter_name(kind: FilterKind) -> &'static str {
     match kind {
@@ -228,4 +241,36 @@ fn write_track(path: &Path, fixes: &[Fix], truth: &host_sim::truth::Truth) -> an
         );
     }
     std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_without_fixes_says_so_instead_of_nan() {
+        let empty = aim_tracker::iqr::quantile_sorted(&[], 0.5);
+        let run = TrackRun {
+            kind: FilterKind::Aim,
+            summary: metrics::Summary {
+                mean_m: 0.0,
+                median_m: empty,
+                p90_m: empty,
+                availability: 0.0,
+                fixes: 0,
+                due: 120,
+                motion_accuracy: 0.0,
+                los_accuracy: None,
+            },
+            latency: Default::default(),
+        };
+        let line = summary_line("s", &run);
+        assert_eq!(line, "s aim: no fix to compare with the truth (0 of 120 due)");
+        let mut ok = run;
+        ok.summary =
+            metrics::Summary { mean_m: 0.5, median_m: 0.4, p90_m: 0.9, fixes: 3, ..ok.summary };
+        let line = summary_line("s", &ok);
+        assert!(line.starts_with("s aim: mean 0.50 m, median 0.40 m, p90 0.90 m"), "{line}");
+        assert!(!line.contains("NaN"), "{line}");
+    }
 }
