@@ -1,6 +1,7 @@
 //! The streamed simulation (`simulate_to`, what `host-sim simulate` runs) writes the same bytes
 //! the whole-run simulator wrote before streaming: golden FNV-1a hashes of the WAV files
-//! written by `host-sim simulate` at e48823c (the last commit that held whole signals) for two
+//! (and the truth and site files) written by `host-sim simulate` at e48823c (the last commit
+//! that held whole signals) for two
 //! scenarios that exercise every renderer feature over several output blocks.
 use std::path::{Path, PathBuf};
 
@@ -70,7 +71,13 @@ fn golden(name: &str, expected: &[(&str, u64)], threads: usize) {
 fn streamed_simulation_matches_the_whole_run_golden_hashes() {
     golden(
         "stream-golden.toml",
-        &[("array-1.wav", 0x3d9a_d1e1_5355_1e0a), ("array-4.wav", 0x9350_5228_eb07_1232)],
+        &[
+            ("array-1.wav", 0x3d9a_d1e1_5355_1e0a),
+            ("array-4.wav", 0x9350_5228_eb07_1232),
+            ("site.toml", 0x83a2_092b_c80e_3736),
+            ("truth.csv", 0xbf95_3604_c233_043b),
+            ("truth.toml", 0x75d2_6e37_e6a2_5b74),
+        ],
         2,
     );
 }
@@ -78,7 +85,16 @@ fn streamed_simulation_matches_the_whole_run_golden_hashes() {
 /// Every rotor a source with all its paths, a late, slow clock; single-threaded.
 #[test]
 fn streamed_each_rotor_scenario_matches_its_golden_hash() {
-    golden("stream-golden-each.toml", &[("array-2.wav", 0x1167_19e3_02fc_669d)], 1);
+    golden(
+        "stream-golden-each.toml",
+        &[
+            ("array-2.wav", 0x1167_19e3_02fc_669d),
+            ("site.toml", 0x1faf_f718_8811_7ac4),
+            ("truth.csv", 0x5a5d_77dd_d7d3_8aaa),
+            ("truth.toml", 0x34ff_8ebc_75e9_e4f7),
+        ],
+        1,
+    );
 }
 
 /// `host-sim fly`'s link bytes, rendered and piped block by block, are the bytes of the whole
