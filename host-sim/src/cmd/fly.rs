@@ -88,7 +88,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     progress.finish_and_clear();
     let runs = track(&sim, &links, &out, &profile, &kinds, args.period)?;
     for r in &runs {
-        println!("{}", summary_line(&scenario.name, r));
+        if let Some(line) = no_fix_line(&scenario.name, r) {
+            println!("{line}");
+            continue;
+        }
+        let s = &r.summary;
+        println!(
+            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
+            scenario.name,
+            filter_name(r.kind),
+            s.mean_m,
+            s.median_m,
+            s.p90_m,
+            100.0 * s.availability,
+            s.fixes,
+            s.due,
+            100.0 * s.motion_accuracy,
+            s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
+            r.latency.mean_latency_s,
+            r.latency.max_latency_s,
+        );
     }
     Ok(())
 }
@@ -169,32 +188,17 @@ pub(crate) fn track(
     Ok(runs)
 }
 
-/// The line `fly` prints for one filter's run. Without any fix to compare there is no error
-/// to state (issue 17: it printed "mean -0.00 m, median NaN m"): it says so instead.
-pub(crate) fn summary_line(name: &str, r: &TrackRun) -> String {
-    let s = &r.summary;
-    if s.fixes == 0 {
-        return format!(
+/// What `fly` prints for a run without any fix to compare with the truth: there is no error
+/// to state (issue 17: it printed "mean -0.00 m, median NaN m"), so it says so. None when
+/// there were fixes.
+pub(crate) fn no_fix_line(name: &str, r: &TrackRun) -> Option<String> {
+    (r.summary.fixes == 0).then(|| {
+        format!(
             "{name} {}: no fix to compare with the truth (0 of {} due)",
             filter_name(r.kind),
-            s.due
-        );
-    }
-    format!(
-        "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
-        name,
-        filter_name(r.kind),
-        s.mean_m,
-        s.median_m,
-        s.p90_m,
-        100.0 * s.availability,
-        s.fixes,
-        s.due,
-        100.0 * s.motion_accuracy,
-        s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
-        r.latency.mean_latency_s,
-        r.latency.max_latency_s,
-    )
+            r.summary.due
+        )
+    })
 }
 
 /// The filter's name on the command line and in output paths.
@@ -249,28 +253,32 @@ mod tests {
 
     #[test]
     fn a_run_without_fixes_says_so_instead_of_nan() {
-        let empty = aim_tracker::iqr::quantile_sorted(&[], 0.5);
-        let run = TrackRun {
-            kind: FilterKind::Aim,
-            summary: metrics::Summary {
-                mean_m: 0.0,
-                median_m: empty,
-                p90_m: empty,
-                availability: 0.0,
-                fixes: 0,
-                due: 120,
-                motion_accuracy: 0.0,
-                los_accuracy: None,
-            },
-            latency: Default::default(),
+        let row = |k: usize| host_sim::truth::TruthRow {
+            t_s: k as f64 * 0.01,
+            position: [k as f64 * 0.01, 0.0, 2.0],
+            velocity: [1.0, 0.0, 0.0],
+            acceleration: [0.0; 3],
+            yaw_rad: 0.0,
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            rotor_hz: vec![164.0; 4],
+            los: vec![true],
         };
-        let line = summary_line("s", &run);
-        assert_eq!(line, "s aim: no fix to compare with the truth (0 of 120 due)");
-        let mut ok = run;
-        ok.summary =
-            metrics::Summary { mean_m: 0.5, median_m: 0.4, p90_m: 0.9, fixes: 3, ..ok.summary };
-        let line = summary_line("s", &ok);
-        assert!(line.starts_with("s aim: mean 0.50 m, median 0.40 m, p90 0.90 m"), "{line}");
-        assert!(!line.contains("NaN"), "{line}");
+        let truth = host_sim::truth::Truth {
+            blades: 2,
+            array_ids: vec![1],
+            clocks: Vec::new(),
+            airframe: None,
+            rows: (0..=1200).map(row).collect(),
+        };
+        // The inputs spanned 0–12 s but the tracker gave no fix: the median is undefined.
+        let summary = metrics::evaluate(&[], &truth, 0.1, 0.0, 12.0, 0);
+        assert!(summary.median_m.is_nan() && summary.due > 100);
+        let run = TrackRun { kind: FilterKind::Aim, summary, latency: Default::default() };
+        let line = no_fix_line("s", &run).expect("no fixes");
+        assert_eq!(
+            line,
+            format!("s aim: no fix to compare with the truth (0 of {} due)", run.summary.due)
+        );
     }
 }
