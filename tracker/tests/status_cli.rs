@@ -86,3 +86,22 @@ fn gaps_health_crc_and_unknown_arrays_reach_the_statistics() {
     }
     assert_eq!(a["mic_suspect"], false, "{a}");
 }
+
+#[test]
+fn a_status_period_out_of_range_is_refused_naming_the_flag() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let site = dir.join(format!("status-flag-site-{}.toml", std::process::id()));
+    std::fs::write(&site, common::SITE_TOML).unwrap();
+    for bad in ["-1", "nan", "1e-9", "1e9"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_aim"))
+            .args(["track", "--serial", "/nonexistent/port", "--site"])
+            .arg(&site)
+            .arg(format!("--status-every={bad}"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{bad}: {stderr}");
+        assert!(stderr.contains("--status-every must be"), "{bad}: {stderr}");
+    }
+    let _ = std::fs::remove_file(&site);
+}

@@ -37,6 +37,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         STATUS_EVERY_RANGE_S,
         "s",
     )?;
+    if every > 0.0 && every < MIN_STATUS_EVERY_S {
+        anyhow::bail!(
+            "--status-every must be 0 (never) or at least {MIN_STATUS_EVERY_S} s, not {every}"
+        );
+    }
     let mut session = args.options.build()?;
     if every > 0.0 {
         spawn_status_line(&session, every);
@@ -55,6 +60,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// Allowed `--status-every`, s (0: off; up to a day).
 const STATUS_EVERY_RANGE_S: std::ops::RangeInclusive<f64> = 0.0..=86_400.0;
+/// Shortest status period, s: a line more often would flood stderr.
+const MIN_STATUS_EVERY_S: f64 = 0.1;
 
 /// Prints the session's status line on stderr every `every_s` seconds, from a thread of its
 /// own so a silent link still shows (its last frame's age grows); ends with the process.
