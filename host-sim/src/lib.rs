@@ -35,14 +35,16 @@ pub mod scenario;
 pub mod site;
 pub mod sound;
 pub mod truth;
+pub mod wav;
+pub mod window;
 
 use array::Clock;
 use filter::Gaussian;
 use flight::{ControlGains, FlightLog};
-use propagation::{Fixed, Medium, PathKind, PreparedSource, Receiver, Trajectory};
+use propagation::{Fixed, Medium, PathKind, Receiver, Trajectory};
 use scenario::{RotorSources, Scenario};
 use site::{Site, SiteArray, SiteObstacle, SiteRoom};
-use sound::SourceSignal;
+use sound::SignalBlocks as _;
 use truth::{Truth, TruthRow};
 
 /// Digital full scale of the simulated microphones, Pa: 120 dB SPL (a MEMS microphone of
@@ -182,18 +184,55 @@ enum Reach {
     FreeDirect,
 }
 
-/// One sound source to render: its signal, where it is, and which paths it takes.
-struct Emitter<'a> {
-    signal: PreparedSource<'a>,
-    trajectory: Box<dyn Trajectory + 'a>,
-    reach: Reach,
-}
-
-/// Simulates `scenario`.
+/// Simulates `scenario`, keeping every microphone's whole recording in memory.
 pub fn simulate_with(
     scenario: &Scenario,
     options: &Options,
     progress: &ProgressBar,
+) -> anyhow::Result<Simulation> {
+    let mut keep =
+        Keep(scenario.arrays.iter().map(|a| vec![Vec::new(); a.positions.len()]).collect());
+    let mut sim = simulate_to(scenario, options, progress, &mut keep)?;
+    for (a, channels) in sim.arrays.iter_mut().zip(keep.0) {
+        a.channels = channels;
+    }
+    Ok(sim)
+}
+
+/// Receives a simulation's audio block by block.
+pub trait AudioSink {
+    /// The next block of array `array` (index in the scenario): `channels[m]` holds microphone
+    /// m's next samples, Pa. Blocks come in time order, every array's block of one instant
+    /// before the next instant's; all channels of a block have the same length.
+    fn block(&mut self, array: usize, channels: &[&[f32]]) -> anyhow::Result<()>;
+}
+
+/// The sink of [`simulate_with`]: appends every block to its recording.
+struct Keep(Vec<Vec<Vec<f32>>>);
+
+impl AudioSink for Keep {
+    fn block(&mut self, array: usize, channels: &[&[f32]]) -> anyhow::Result<()> {
+        for (kept, new) in self.0[array].iter_mut().zip(channels) {
+            kept.extend_from_slice(new);
+        }
+        Ok(())
+    }
+}
+
+/// Output samples per microphone rendered at a time (one second at 48 kHz): the simulation's
+/// memory holds this much output and every source's signal over this span plus the longest
+/// path's delay, whatever the duration.
+pub const OUTPUT_BLOCK: usize = 48_000;
+
+/// Simulates `scenario`, handing the audio to `sink` block by block ([`OUTPUT_BLOCK`] samples
+/// per microphone) as it is rendered, so memory does not grow with the duration (but for the
+/// flight log and the truth). The samples are the same bits [`simulate_with`] keeps. The
+/// returned simulation's `channels` are empty: the audio went to `sink`.
+pub fn simulate_to(
+    scenario: &Scenario,
+    options: &Options,
+    progress: &ProgressBar,
+    sink: &mut dyn AudioSink,
 ) -> anyhow::Result<Simulation> {
     let fs = scenario.sample_rate_hz as f64;
     let c = scenario.air.speed_of_sound_mps();
@@ -220,63 +259,52 @@ pub fn simulate_with(
         sub_seed(scenario.seed, 1),
     );
 
-    // Source signals on the grid t_first + k / fs.
+    // Source signals on the grid t_first + k / fs, generated block by block into windows.
     let n_src = ((t_last - t_first) * fs).ceil() as usize + 4;
-    let mut signals: Vec<(SourceSignal, Box<dyn Trajectory + '_>, Reach)> = Vec::new();
     let rotors = scenario.drone.rotor_count();
-    let rotor_signal = |i: usize| {
-        sound::propeller(
-            &scenario.drone,
-            airframe.shaft_line_boost_db[i],
-            &log,
-            i,
-            t_first,
-            fs,
-            n_src,
-            sub_seed(scenario.seed, 100 + i as u64),
-        )
-    };
+    let mut rotor_gens: Vec<sound::Propeller> = (0..rotors)
+        .map(|i| {
+            sound::Propeller::new(
+                &scenario.drone,
+                airframe.shaft_line_boost_db[i],
+                &log,
+                i,
+                t_first,
+                fs,
+                n_src,
+                sub_seed(scenario.seed, 100 + i as u64),
+            )
+        })
+        .collect();
     let mode = scenario.render.rotor_sources;
-    let per_rotor: Vec<SourceSignal> = (0..rotors).map(rotor_signal).collect();
+    let mut trajectories: Vec<(Box<dyn Trajectory + '_>, Reach)> = Vec::new();
     if mode != RotorSources::Centre {
         let reach = if mode == RotorSources::Each { Reach::All } else { Reach::Direct };
-        for (i, s) in per_rotor.iter().enumerate() {
-            signals.push((s.clone(), Box::new(RotorPath { log: &log, rotor: i }), reach));
+        for i in 0..rotors {
+            trajectories.push((Box::new(RotorPath { log: &log, rotor: i }), reach));
         }
     }
     if mode != RotorSources::Each {
-        let mut sum = per_rotor[0].clone();
-        for s in &per_rotor[1..] {
-            for (a, b) in sum.samples.iter_mut().zip(&s.samples) {
-                *a += b;
-            }
-        }
         let reach = if mode == RotorSources::Centre { Reach::All } else { Reach::Indirect };
-        signals.push((sum, Box::new(CentrePath(&log)), reach));
+        trajectories.push((Box::new(CentrePath(&log)), reach));
     }
-    drop(per_rotor);
+    let mut noise_gens: Vec<noise::BandNoise> = Vec::new();
     for (i, n) in scenario.noise.iter().enumerate() {
-        let s = n.signal(t_first, fs, n_src, sub_seed(scenario.seed, 200 + i as u64));
-        signals.push((s, Box::new(Fixed(n.position_m)), Reach::All));
+        noise_gens.push(n.blocks(fs, n_src, sub_seed(scenario.seed, 200 + i as u64)));
+        trajectories.push((Box::new(Fixed(n.position_m)), Reach::All));
     }
     if let Some(d) = &scenario.diffuse_noise {
         // Plane waves centred on the arrays' centroid.
         let centre = scenario.arrays.iter().map(|a| a.position_m).sum::<Vector3<f64>>()
             / scenario.arrays.len() as f64;
         for (i, u) in d.directions().iter().enumerate() {
-            let s = d.signal(t_first, fs, n_src, sub_seed(scenario.seed, 300 + i as u64));
+            noise_gens.push(d.blocks(fs, n_src, sub_seed(scenario.seed, 300 + i as u64)));
             let position = centre + u * noise::DIFFUSE_DISTANCE_M;
-            signals.push((s, Box::new(Fixed(position)), Reach::FreeDirect));
+            trajectories.push((Box::new(Fixed(position)), Reach::FreeDirect));
         }
     }
-    let emitters: Vec<Emitter> = signals
-        .iter()
-        .map(|(s, t, d)| Emitter {
-            signal: PreparedSource::new(s),
-            trajectory: Box::new(Borrowed(t.as_ref())),
-            reach: *d,
-        })
-        .collect();
+    let mut windows: Vec<window::SourceWindow> =
+        trajectories.iter().map(|_| window::SourceWindow::new(t_first, fs, n_src)).collect();
 
     let medium = Medium {
         c_mps: c,
@@ -306,6 +334,8 @@ pub fn simulate_with(
         gain: f32,
         noise_rms: f64,
         seed: u64,
+        /// The microphone's fixed output when dead (0) or stuck, Pa.
+        fault: Option<f32>,
     }
     let mut jobs = Vec::new();
     for (ai, a) in scenario.arrays.iter().enumerate() {
@@ -325,69 +355,162 @@ pub fn simulate_with(
                 gain: 10f64.powf(gain_db / 20.0) as f32,
                 noise_rms: sound::spl_to_rms_pa(a.self_noise_db),
                 seed: rng.random(),
+                fault: if a.dead_mics.contains(&m) {
+                    Some(0.0)
+                } else if a.stuck_mics.contains(&m) {
+                    Some(array::STUCK_PA)
+                } else {
+                    None
+                },
             });
         }
     }
 
+    // The longest delay any path can have, s: the bound of `longest_path_m` over where the
+    // drone really flew, with margin. A read before it would be an error, never a silent zero.
+    let max_delay_s = 1.25 * longest_path_bound_m(scenario, &log) / c + 0.05;
+    let max_extra_s = jobs.iter().map(|j| j.receiver.extra_delay_s.abs()).fold(0.0, f64::max);
+
     progress.set_length((jobs.len() * n_out) as u64);
     progress.set_position(0);
     let block = scenario.render.block_samples;
-    const CHUNK: usize = 48_000;
-    let run_job = |job: &Job| -> Vec<f32> {
-        let mut out = vec![0.0f32; n_out];
-        for (ci, chunk) in out.chunks_mut(CHUNK).enumerate() {
-            let mut rx = job.receiver;
-            rx.t0_s += (ci * CHUNK) as f64 * rx.dt_s;
-            for e in &emitters {
-                let (m, p): (&Medium, &[PathKind]) = match e.reach {
-                    Reach::All => (&medium, &paths),
-                    Reach::Direct => (&medium, &direct_paths),
-                    Reach::Indirect => (&medium, &indirect),
-                    Reach::FreeDirect => (&free, &free_direct),
-                };
-                propagation::render(m, &e.signal, e.trajectory.as_ref(), p, &rx, block, chunk);
+    // Per microphone: its output block and its self-noise generator.
+    let states: Vec<std::sync::Mutex<(Vec<f32>, Gaussian)>> = jobs
+        .iter()
+        .map(|j| {
+            let g = Gaussian::new(StdRng::seed_from_u64(j.seed));
+            std::sync::Mutex::new((Vec::with_capacity(OUTPUT_BLOCK), g))
+        })
+        .collect();
+    let outside = std::sync::Mutex::new(None::<propagation::OutsideWindow>);
+    let run_job = |i: usize, ci: usize, n: usize, views: &[propagation::SourceView]| {
+        let job = &jobs[i];
+        let mut state = states[i].lock().expect("no panics while held");
+        let (out, g) = &mut *state;
+        out.clear();
+        out.resize(n, 0.0);
+        let mut rx = job.receiver;
+        rx.t0_s += (ci * OUTPUT_BLOCK) as f64 * rx.dt_s;
+        for ((traj, reach), view) in trajectories.iter().zip(views) {
+            let (m, p): (&Medium, &[PathKind]) = match reach {
+                Reach::All => (&medium, &paths),
+                Reach::Direct => (&medium, &direct_paths),
+                Reach::Indirect => (&medium, &indirect),
+                Reach::FreeDirect => (&free, &free_direct),
+            };
+            let rendered = propagation::render_window(m, view, traj.as_ref(), p, &rx, block, out);
+            if let Err(e) = rendered {
+                *outside.lock().expect("no panics while held") = Some(e);
             }
-            progress.inc(chunk.len() as u64);
         }
-        let mut g = Gaussian::new(StdRng::seed_from_u64(job.seed));
-        for y in &mut out {
+        for y in out.iter_mut() {
             *y = *y * job.gain + (g.sample() * job.noise_rms) as f32;
         }
-        out
+        if let Some(v) = job.fault {
+            out.fill(v);
+        }
+        progress.inc(n as u64);
     };
     let threads = match options.threads {
         0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
         n => n,
     }
     .min(jobs.len().max(1));
-    let mut outputs: Vec<Option<Vec<f32>>> = (0..jobs.len()).map(|_| None).collect();
-    if threads <= 1 {
-        for (j, o) in jobs.iter().zip(outputs.iter_mut()) {
-            *o = Some(run_job(j));
+
+    let mut rotor_block: Vec<Vec<f32>> = vec![Vec::new(); rotors];
+    let mut noise_block: Vec<f32> = Vec::new();
+    for ci in 0..n_out.div_ceil(OUTPUT_BLOCK) {
+        let n = OUTPUT_BLOCK.min(n_out - ci * OUTPUT_BLOCK);
+        // The signal indices this block can read, over every microphone's clock.
+        let (mut q_lo, mut q_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for j in &jobs {
+            let t0 = j.receiver.t0_s + (ci * OUTPUT_BLOCK) as f64 * j.receiver.dt_s;
+            let t1 = t0 + n as f64 * j.receiver.dt_s;
+            q_lo = q_lo.min((t0 - max_delay_s - max_extra_s - t_first) * fs);
+            q_hi = q_hi.max((t1 + max_extra_s - t_first) * fs);
         }
-    } else {
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let results = std::sync::Mutex::new(&mut outputs);
-        std::thread::scope(|s| {
-            for _ in 0..threads {
-                s.spawn(|| loop {
-                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(job) = jobs.get(i) else { break };
-                    let y = run_job(job);
-                    results.lock().expect("no worker panics while holding the lock")[i] = Some(y);
-                });
+        let need_lo = (q_lo.floor() - 8.0).max(0.0) as usize;
+        let need_hi = ((q_hi.ceil() + 8.0).max(0.0) as usize).min(n_src);
+        // Generate up to one past the last needed sample (its second difference needs it).
+        let have = windows.first().map_or(n_src, window::SourceWindow::end);
+        let more = (need_hi + 2).min(n_src).saturating_sub(have);
+        if more > 0 {
+            let mut e = 0;
+            for (buf, gen) in rotor_block.iter_mut().zip(rotor_gens.iter_mut()) {
+                buf.resize(more, 0.0);
+                gen.fill(buf);
             }
-        });
+            if mode != RotorSources::Centre {
+                for buf in &rotor_block {
+                    windows[e].push(buf);
+                    e += 1;
+                }
+            }
+            if mode != RotorSources::Each {
+                // The rotors' sum, added in rotor order.
+                let (first, rest) = rotor_block.split_first_mut().expect("a drone has rotors");
+                for other in rest.iter() {
+                    for (a, b) in first.iter_mut().zip(other) {
+                        *a += b;
+                    }
+                }
+                windows[e].push(first);
+                e += 1;
+            }
+            for gen in &mut noise_gens {
+                noise_block.resize(more, 0.0);
+                gen.fill(&mut noise_block);
+                windows[e].push(&noise_block);
+                e += 1;
+            }
+        }
+        for w in &mut windows {
+            w.trim(need_lo);
+        }
+        let views: Vec<propagation::SourceView> = windows.iter().map(|w| w.view()).collect();
+        if threads <= 1 {
+            for i in 0..jobs.len() {
+                run_job(i, ci, n, &views);
+            }
+        } else {
+            let next = std::sync::atomic::AtomicUsize::new(0);
+            std::thread::scope(|s| {
+                for _ in 0..threads {
+                    s.spawn(|| loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if i >= jobs.len() {
+                            break;
+                        }
+                        run_job(i, ci, n, &views);
+                    });
+                }
+            });
+        }
+        if let Some(e) = *outside.lock().expect("no panics while held") {
+            anyhow::bail!(
+                "internal error: a path needed source samples {}..={} outside the window kept \
+                 ({}..{}); the delay bound is too short for this scenario",
+                e.needed_from,
+                e.needed_to,
+                need_lo,
+                need_hi
+            );
+        }
+        for ai in 0..scenario.arrays.len() {
+            let guards: Vec<_> = (0..jobs.len())
+                .filter(|&i| jobs[i].array == ai)
+                .map(|i| states[i].lock().expect("no panics while held"))
+                .collect();
+            let channels: Vec<&[f32]> = guards.iter().map(|g| g.0.as_slice()).collect();
+            sink.block(ai, &channels)?;
+        }
     }
-    let mut outputs = outputs.into_iter().map(|o| o.expect("every job ran"));
-    let mut arrays = Vec::new();
-    for (ai, a) in scenario.arrays.iter().enumerate() {
-        let channels: Vec<Vec<f32>> = jobs
-            .iter()
-            .filter(|j| j.array == ai)
-            .map(|_| outputs.next().expect("one per job"))
-            .collect();
-        arrays.push(ArrayRecording {
+    progress.finish_and_clear();
+
+    let arrays = scenario
+        .arrays
+        .iter()
+        .map(|a| ArrayRecording {
             id: a.id,
             sample_rate_hz: scenario.sample_rate_hz,
             geometry: a.geometry.clone(),
@@ -395,29 +518,35 @@ pub fn simulate_with(
             position_m: a.position_m.into(),
             yaw_rad: a.yaw_rad,
             clock: a.clock,
-            channels,
-        });
-    }
-    progress.finish_and_clear();
-
+            channels: Vec::new(),
+        })
+        .collect();
     let mut truth = make_truth(scenario, &log);
     truth.airframe = Some(airframe.clone());
     let site = make_site(scenario, c);
-    drop(emitters);
-    drop(signals);
+    drop(windows);
+    drop(trajectories);
     Ok(Simulation { name: scenario.name.clone(), arrays, truth, site, airframe, flight: log })
 }
 
-/// A borrowed trajectory behind a box.
-struct Borrowed<'a>(&'a (dyn Trajectory + 'a));
-
-impl Trajectory for Borrowed<'_> {
-    fn position(&self, t_s: f64) -> Vector3<f64> {
-        self.0.position(t_s)
-    }
-    fn is_static(&self) -> bool {
-        self.0.is_static()
-    }
+/// Simulates `scenario` straight into `dir` (created if missing): `array-<id>.wav` written
+/// block by block as [`Simulation::write`] would write them (the same bytes), then the truth
+/// and site files. Memory does not grow with the duration but for the flight log and the
+/// truth. A sample that is not finite stops the run, and no WAV file is left behind.
+pub fn write_streamed(
+    scenario: &Scenario,
+    options: &Options,
+    progress: &ProgressBar,
+    dir: &Path,
+) -> anyhow::Result<Simulation> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let arrays: Vec<(u8, usize)> =
+        scenario.arrays.iter().map(|a| (a.id, a.positions.len())).collect();
+    let mut sink = wav::WavSink::create(dir, &arrays, scenario.sample_rate_hz)?;
+    let sim = simulate_to(scenario, options, progress, &mut sink)?;
+    sink.finish()?;
+    sim.write_truth_and_site(dir)?;
+    Ok(sim)
 }
 
 /// An upper bound of the longest path any simulated sound takes, m.
@@ -445,6 +574,27 @@ fn longest_path_m(s: &Scenario) -> f64 {
     let diffuse = if s.diffuse_noise.is_some() { noise::DIFFUSE_DISTANCE_M + diag } else { 0.0 };
     // The diffracted path is at most twice the box-to-box diagonal.
     (diag * (order + 1.0) * 2.0).max(diffuse)
+}
+
+/// An upper bound of the longest path any simulated sound takes, m, from where the drone
+/// really flew (every logged position, widened by the rotors' reach) rather than the plan.
+fn longest_path_bound_m(s: &Scenario, log: &FlightLog) -> f64 {
+    let reach = log.rotors.iter().map(|r| r.position_m.norm()).fold(0.0, f64::max) + 0.5;
+    let mut pts: Vec<Vector3<f64>> = s.arrays.iter().map(|a| a.position_m).collect();
+    pts.extend(s.noise.iter().map(|n| n.position_m));
+    let (mut lo, mut hi) = (pts[0], pts[0]);
+    for p in pts.iter().chain(log.samples.iter().map(|x| &x.position)) {
+        lo = lo.inf(&(p - Vector3::repeat(reach)));
+        hi = hi.sup(&(p + Vector3::repeat(reach)));
+    }
+    if let Some(r) = &s.room {
+        lo = lo.inf(&Vector3::zeros());
+        hi = hi.sup(&Vector3::from(r.size_m));
+    }
+    let diag = (hi - lo).norm() + 1.0;
+    let order = s.room.as_ref().map_or(0, |r| r.reflection_order) as f64;
+    let diffuse = if s.diffuse_noise.is_some() { noise::DIFFUSE_DISTANCE_M + diag } else { 0.0 };
+    (diag * (order + 1.0) * 2.0).max(diffuse).max(longest_path_m(s))
 }
 
 fn make_truth(s: &Scenario, log: &FlightLog) -> Truth {
@@ -520,8 +670,13 @@ impl Simulation {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for a in &self.arrays {
             let path = dir.join(format!("array-{}.wav", a.id));
-            write_wav(&path, a).with_context(|| format!("writing {}", path.display()))?;
+            wav::write_wav(&path, a).with_context(|| format!("writing {}", path.display()))?;
         }
+        self.write_truth_and_site(dir)
+    }
+
+    /// Writes `truth.csv`, `truth.toml` and `site.toml` into `dir`.
+    pub fn write_truth_and_site(&self, dir: &Path) -> anyhow::Result<()> {
         let truth = dir.join("truth.csv");
         std::fs::write(&truth, self.truth.to_csv())
             .with_context(|| format!("writing {}", truth.display()))?;
@@ -533,24 +688,6 @@ impl Simulation {
             .with_context(|| format!("writing {}", site.display()))?;
         Ok(())
     }
-}
-
-fn write_wav(path: &Path, a: &ArrayRecording) -> anyhow::Result<()> {
-    let spec = hound::WavSpec {
-        channels: a.channels.len() as u16,
-        sample_rate: a.sample_rate_hz,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(path, spec)?;
-    let len = a.channels.first().map_or(0, Vec::len);
-    for k in 0..len {
-        for ch in &a.channels {
-            w.write_sample(ch[k])?;
-        }
-    }
-    w.finalize()?;
-    Ok(())
 }
 
 #[cfg(test)]

@@ -46,7 +46,8 @@
 //! [diffuse_noise] spl_db, low_hz [100], high_hz [8000], directions [32]
 //! [[array]]   id, geometry ["respeaker-6mic"] or positions = [[x, y], ...], position = [x, y, z],
 //!             yaw_deg [0], clock_offset_s [0], clock_drift_ppm [0], self_noise_db [35],
-//!             gain_mismatch_db [0.3], phase_mismatch_us [2]
+//!             gain_mismatch_db [0.3], phase_mismatch_us [2], dead_mics [[]] (indices of
+//!             microphones that output 0), stuck_mics [[]] (indices stuck at a constant 5 Pa)
 //! [render]    rotor_sources = "each" | "direct" | "centre" ["direct"], block_samples [128],
 //!             control_rate_hz [1000], diffraction_ref_hz [500], absorption [true]
 //! ```
@@ -263,6 +264,10 @@ struct FileArray {
     gain_mismatch_db: f64,
     #[serde(default = "d_phase_mm")]
     phase_mismatch_us: f64,
+    #[serde(default)]
+    dead_mics: Vec<usize>,
+    #[serde(default)]
+    stuck_mics: Vec<usize>,
 }
 fn d_self_noise() -> f64 {
     35.0
@@ -787,7 +792,19 @@ impl Scenario {
                 self_noise_db: a.self_noise_db,
                 gain_mismatch_db: a.gain_mismatch_db,
                 phase_mismatch_us: a.phase_mismatch_us,
+                dead_mics: a.dead_mics.clone(),
+                stuck_mics: a.stuck_mics.clone(),
             };
+            if let Some(m) =
+                cfg.dead_mics.iter().chain(&cfg.stuck_mics).find(|&&m| m >= cfg.positions.len())
+            {
+                return Err(format!(
+                    "array {}: dead_mics/stuck_mics name microphone {m}, but it has {} (0..{})",
+                    a.id,
+                    cfg.positions.len(),
+                    cfg.positions.len()
+                ));
+            }
             cfg.validate()?;
             arrays.push(cfg);
         }
@@ -1012,21 +1029,25 @@ impl Scenario {
         Ok(())
     }
 
-    /// Memory a simulation of this scenario needs at its peak, bytes (an estimate within
-    /// about 20 %): every source's signal and its second difference (f32 at the sample rate
-    /// over the duration plus the longest path's delay), every microphone's recording, and the
-    /// flight log at the control rate.
+    /// Memory a streamed simulation of this scenario (`host-sim simulate`, `host-sim fly`)
+    /// needs at its peak, bytes (an estimate, on the high side): every source's window of
+    /// signal and second difference (f32 over one output block, the longest path's delay and the
+    /// clocks' spread, with room for the window's growth), one output block per microphone, the
+    /// flight log at the control rate and the truth rows, the two that still grow with the
+    /// duration. [`Self::recordings_bytes`] more when the recordings are kept in memory
+    /// (`host_sim::simulate_with`).
     pub fn memory_estimate_bytes(&self) -> u64 {
         let fs = f64::from(self.sample_rate_hz);
         let offsets = self.arrays.iter().map(|a| a.clock.offset_s);
         let spread = offsets.clone().fold(0.0f64, f64::max) - offsets.fold(0.0f64, f64::min);
-        // Pre-roll: the longest path (room diagonal times the reflection order) at 343 m/s.
+        // Pre-roll: the longest path (room diagonal times the reflection order) at 343 m/s,
+        // with the renderer's margin.
         let pre_roll = self.room.as_ref().map_or(0.5, |r| {
             let diagonal = r.size_m.iter().map(|l| l * l).sum::<f64>().sqrt();
-            diagonal * (2.0 * f64::from(r.reflection_order) + 1.0) / 343.0 + 0.05
+            diagonal * (2.0 * f64::from(r.reflection_order) + 2.0) / 343.0 + 0.05
         });
-        let n_src = (self.duration_s * 1.001 + spread + pre_roll + 0.1) * fs;
-        let n_out = self.duration_s * fs;
+        let block_s = crate::OUTPUT_BLOCK as f64 / fs;
+        let window = (block_s + spread + 1.25 * pre_roll + 0.1) * fs;
         let rotors = self.drone.rotor_count() as f64;
         let rotor_emitters = match self.render.rotor_sources {
             RotorSources::Each => rotors,
@@ -1037,12 +1058,20 @@ impl Scenario {
             + self.noise.len() as f64
             + self.diffuse_noise.as_ref().map_or(0.0, |d| d.directions as f64);
         let mics: usize = self.arrays.iter().map(|a| a.positions.len()).sum();
-        // Signal and second difference per emitter (the per-rotor signals are dropped before
-        // the differences are made) and one recording per microphone; the flight log (~400 B
-        // per control step).
-        let samples = n_src * 2.0 * emitters + n_out * mics as f64;
-        let log = (self.duration_s + spread + pre_roll) * self.render.control_rate_hz * 400.0;
+        // Signal and second difference per emitter (a window's vector may hold up to twice
+        // what it uses), the rotors' block, and one output block per microphone.
+        let samples =
+            window * (2.0 * 2.0 * emitters + rotors) + crate::OUTPUT_BLOCK as f64 * mics as f64;
+        // The flight log (~400 B per control step) and the truth (~300 B per row).
+        let span = self.duration_s + spread + pre_roll;
+        let log = span * self.render.control_rate_hz * 400.0 + span * self.truth_rate_hz * 300.0;
         (samples * 4.0 + log) as u64
+    }
+
+    /// Memory of every microphone's whole recording (f32), bytes.
+    pub fn recordings_bytes(&self) -> u64 {
+        let mics: usize = self.arrays.iter().map(|a| a.positions.len()).sum();
+        (self.duration_s * f64::from(self.sample_rate_hz)) as u64 * mics as u64 * 4
     }
 }
 

@@ -9,6 +9,7 @@
 //! - [`tracker`]: the pipeline that runs them at a fixed output period;
 //! - [`link`], [`intake`], [`session`]: link bytes → frames → inputs in time order on one time
 //!   base → the tracker, the one path of `aim track`, `aim replay` and `host-sim fly`;
+//! - [`status`]: per-array link and board counters, the status line of `aim track`;
 //! - [`profile`], [`site`]: drone profiles and site files (TOML).
 #![warn(missing_docs)]
 
@@ -26,6 +27,7 @@ pub mod observation;
 pub mod profile;
 pub mod session;
 pub mod site;
+pub mod status;
 #[cfg(test)]
 mod testutil;
 pub mod tracker;

@@ -16,6 +16,7 @@ use serde_json::{json, Value};
 
 use crate::intake::{Intake, IntakeConfig, IntakeError, IntakeStats, Released};
 use crate::link::{json as link_json, FrameSource};
+use crate::status::Status;
 use crate::tracker::{Fix, Tracker};
 
 /// Counts of the tracker's output.
@@ -38,6 +39,10 @@ pub struct Session {
     latency_max_s: f64,
     /// Stamps of the first and the newest input of the tracked array, s.
     inputs_span: Option<(f64, f64)>,
+    /// What the frames say of the arrays and the link (shared with `aim track`'s status line).
+    status: std::sync::Arc<std::sync::Mutex<Status>>,
+    /// The origin of the status clock.
+    started: std::time::Instant,
 }
 
 impl std::fmt::Debug for Session {
@@ -50,7 +55,10 @@ impl Session {
     /// A session of `tracker` fed by an intake with `config` over the tracker's site.
     pub fn new(mut tracker: Tracker, site: crate::site::Site, config: IntakeConfig) -> Self {
         tracker.gate_on_audio();
+        let status = Status::new(site.arrays.iter().map(|a| (a.id, a.mic_positions_m.len())));
         Self {
+            status: std::sync::Arc::new(std::sync::Mutex::new(status)),
+            started: std::time::Instant::now(),
             intake: Intake::new(site, config),
             tracker,
             fixes: 0,
@@ -85,8 +93,30 @@ impl Session {
         }
     }
 
+    /// The arrays' and the link's status, shared (`aim track` prints it from another thread).
+    pub fn status(&self) -> std::sync::Arc<std::sync::Mutex<Status>> {
+        self.status.clone()
+    }
+
+    /// When the session started: the origin of [`Self::clock_s`].
+    pub fn started(&self) -> std::time::Instant {
+        self.started
+    }
+
+    /// Seconds since the session started: the clock of [`Self::status`]'s frame times.
+    pub fn clock_s(&self) -> f64 {
+        self.started.elapsed().as_secs_f64()
+    }
+
+    /// The status, locked (a panic elsewhere while it was held does not hide it).
+    fn status_lock(&self) -> std::sync::MutexGuard<'_, Status> {
+        self.status.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
     /// One frame, in link order; returns the fixes it made available.
     pub fn push(&mut self, frame: &Frame) -> Result<Vec<Fix>, IntakeError> {
+        let now = self.clock_s();
+        self.status_lock().observe(frame, now);
         let tracker = &mut self.tracker;
         let span = &mut self.inputs_span;
         let mut fixes = Vec::new();
@@ -113,10 +143,19 @@ impl Session {
         out: &mut dyn FnMut(&Fix) -> anyhow::Result<()>,
     ) -> anyhow::Result<()> {
         let mut failure = None;
-        for frame in source.by_ref() {
+        while let Some(frame) = source.next() {
             match frame {
                 Ok(frame) => {
-                    for fix in self.push(&frame)? {
+                    let fixes = self.push(&frame)?;
+                    let warnings = {
+                        let mut status = self.status_lock();
+                        status.set_link(source.stats());
+                        status.take_warnings()
+                    };
+                    for w in warnings {
+                        eprintln!("warning: {w}");
+                    }
+                    for fix in fixes {
                         out(&fix)?;
                     }
                 }
@@ -126,6 +165,7 @@ impl Session {
                 }
             }
         }
+        self.status_lock().set_link(source.stats());
         for fix in self.finish() {
             out(&fix)?;
         }
@@ -136,10 +176,13 @@ impl Session {
     }
 
     /// The statistics line of `aim track`/`aim replay`: the link's, the intake's and the
-    /// fixes' counts as one JSON object, `{"kind":"stats",...}`.
+    /// fixes' counts and the arrays' status ([`Status::to_json`]: frames, sequence gaps,
+    /// restarts, the boards' `Health` counters, the microphone flag, unknown arrays) as one JSON
+    /// object, `{"kind":"stats",...}`.
     pub fn stats_json(&self, link: &LinkStats) -> Value {
         let i = self.intake.stats();
         let f = self.fix_stats();
+        let status = self.status_lock().to_json(None);
         json!({
             "kind": "stats",
             "link": link_json::stats(link),
@@ -155,6 +198,8 @@ impl Session {
                 "bad_span": i.bad_span,
                 "late": i.late,
             },
+            "arrays": status["arrays"],
+            "unknown_arrays": status["unknown_arrays"],
             "fixes": f.fixes,
             "mean_latency_s": (f.mean_latency_s * 1e3).round() / 1e3,
             "max_latency_s": (f.max_latency_s * 1e3).round() / 1e3,

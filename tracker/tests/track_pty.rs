@@ -62,7 +62,8 @@ fn aim_track_on_a_pty_at_link_pace_equals_aim_replay() {
     drop(pair);
     let mut child = Command::new(env!("CARGO_BIN_EXE_aim"))
         // The end of the stream is the end of the link here (replug is link_unplug.rs's test).
-        .args(["track", "--reconnect", "false", "--serial", path.to_str().unwrap(), "--site"])
+        .args(["track", "--reconnect", "false", "--status-every", "0.5"])
+        .args(["--serial", path.to_str().unwrap(), "--site"])
         .arg(&site)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -118,6 +119,9 @@ fn aim_track_on_a_pty_at_link_pace_equals_aim_replay() {
     assert_eq!(tracked, replayed, "aim track and aim replay differ; stderr: {rest}");
     // The end of the link is reported, after the statistics line.
     assert!(rest.contains("\"kind\":\"stats\""), "{rest}");
+    // The status line came every 0.5 s of the 4 s run (at least once), with array 1's counts.
+    let line = rest.lines().find(|l| l.starts_with("status ")).expect("a status line");
+    assert!(line.contains("| array 1: ") && line.contains(" frames, 0 gaps"), "{line}");
     let _ = status;
     let _ = std::fs::remove_file(&recording);
     let _ = std::fs::remove_file(&site);

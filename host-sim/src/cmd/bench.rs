@@ -386,14 +386,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let failures: Mutex<Vec<String>> = Mutex::new(Vec::new());
     let run_one = |fam: &Family, seed: u64| -> anyhow::Result<Vec<RunResult>> {
         let scenario = Scenario::load_with(&fam.scenario, seed, &fam.overrides)?;
-        let sim = host_sim::simulate_with(
+        let (sim, links) = host_sim::eval::link::simulate_links(
             &scenario,
             &host_sim::Options { threads: 1 },
             &indicatif::ProgressBar::hidden(),
+            host_sim::DEFAULT_FULL_SCALE_PA,
         )?;
         let dir = args.out.join("runs").join(&fam.name).join(format!("seed-{seed}"));
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        let runs = track(&sim, &dir, &profile, &suite.filters, suite.period_s)?;
+        let runs = track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s)?;
         Ok(runs
             .into_iter()
             .map(|r| RunResult {

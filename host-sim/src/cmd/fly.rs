@@ -1,5 +1,6 @@
 //! `host-sim fly SCENARIO.toml [--filter paper|aim|both] [--out DIR]`: simulate, run every
-//! array's recording through the on-chip pipeline and the wire format into the bytes a board
+//! array's recording (block by block as it is rendered, never held whole; memory refused up
+//! front past `--max-memory-mb` as `host-sim simulate` does) through the on-chip pipeline and the wire format into the bytes a board
 //! would send, then track from those bytes exactly as `aim replay DIR/frames-<id>.aimraw --site
 //! DIR/site.toml` does (the same [`aim_tracker::session::Session`], the frames in link order,
 //! nothing but the bytes and the site file), and compare with the truth.
@@ -45,6 +46,9 @@ pub struct Args {
     /// Worker threads of the simulation (0: all cores).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Refuse scenarios whose simulation needs more memory than this, MB (1 MB = 10⁶ bytes).
+    #[arg(long, default_value_t = 4000)]
+    max_memory_mb: u64,
 }
 
 /// What one tracker run gave.
@@ -64,6 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         other => vec![other.parse().map_err(anyhow::Error::msg).context("--filter")?],
     };
     let scenario = Scenario::load(&args.scenario)?;
+    crate::cmd::simulate::check_memory(&scenario, args.max_memory_mb)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("fly-{}", scenario.name)));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let profile = match &args.profile {
@@ -71,13 +76,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => Profile::dji_mini_2(),
     };
 
+    // The audio goes through every array's pipeline as it is rendered (never held whole).
     let progress = host_sim::progress_bar("simulating");
-    let sim =
-        host_sim::simulate_with(&scenario, &host_sim::Options { threads: args.threads }, &progress)
-            .with_context(|| format!("simulating {}", args.scenario.display()))?;
+    let (sim, links) = link::simulate_links(
+        &scenario,
+        &host_sim::Options { threads: args.threads },
+        &progress,
+        host_sim::DEFAULT_FULL_SCALE_PA,
+    )
+    .with_context(|| format!("simulating {}", args.scenario.display()))?;
     progress.finish_and_clear();
-    let runs = track(&sim, &out, &profile, &kinds, args.period)?;
+    let runs = track(&sim, &links, &out, &profile, &kinds, args.period)?;
     for r in &runs {
+        if let Some(line) = no_fix_line(&scenario.name, r) {
+            println!("{line}");
+            continue;
+        }
         let s = &r.summary;
         println!(
             "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, live mean {:.2} m, availability {:.1} % ({}/{}, {:.1} % within {} m), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
@@ -102,10 +116,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// Everything `host-sim fly` does after simulating, shared with `host-sim bench`: writes the
-/// site and truth files and every array's frame bytes into `out`, runs them through the
-/// tracker with each filter of `kinds` (fixes every `period` s) and compares with the truth.
+/// site and truth files and every array's frame bytes (`links`, in the simulation's array
+/// order, from [`link::simulate_links`]) into `out`, runs them through the tracker with each
+/// filter of `kinds` (fixes every `period` s) and compares with the truth.
 pub(crate) fn track(
     sim: &host_sim::Simulation,
+    links: &[Vec<u8>],
     out: &Path,
     profile: &Profile,
     kinds: &[FilterKind],
@@ -122,11 +138,9 @@ pub(crate) fn track(
 
     // Every array through the pipeline and the link, into the files a board's link would fill.
     let mut raw_paths = Vec::new();
-    for rec in &sim.arrays {
-        eprintln!("array {}: on-chip pipeline …", rec.id);
-        let bytes = link::link_bytes(rec, host_sim::DEFAULT_FULL_SCALE_PA)?;
+    for (rec, bytes) in sim.arrays.iter().zip(links) {
         let raw_path = out.join(format!("frames-{}.aimraw", rec.id));
-        std::fs::write(&raw_path, &bytes)
+        std::fs::write(&raw_path, bytes)
             .with_context(|| format!("writing {}", raw_path.display()))?;
         raw_paths.push((u16::from(rec.id), raw_path));
     }
@@ -177,6 +191,19 @@ pub(crate) fn track(
     Ok(runs)
 }
 
+/// What `fly` prints for a run without any fix to compare with the truth: there is no error
+/// to state (issue 17: it printed "mean -0.00 m, median NaN m"), so it says so. None when
+/// there were fixes.
+pub(crate) fn no_fix_line(name: &str, r: &TrackRun) -> Option<String> {
+    (r.summary.fixes == 0).then(|| {
+        format!(
+            "{name} {}: no fix to compare with the truth (0 of {} due)",
+            filter_name(r.kind),
+            r.summary.due
+        )
+    })
+}
+
 /// The filter's name on the command line and in output paths.
 pub(crate) fn filter_name(kind: FilterKind) -> &'static str {
     match kind {
@@ -221,4 +248,40 @@ fn write_track(path: &Path, fixes: &[Fix], truth: &host_sim::truth::Truth) -> an
         );
     }
     std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_without_fixes_says_so_instead_of_nan() {
+        let row = |k: usize| host_sim::truth::TruthRow {
+            t_s: k as f64 * 0.01,
+            position: [k as f64 * 0.01, 0.0, 2.0],
+            velocity: [1.0, 0.0, 0.0],
+            acceleration: [0.0; 3],
+            yaw_rad: 0.0,
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            rotor_hz: vec![164.0; 4],
+            los: vec![true],
+        };
+        let truth = host_sim::truth::Truth {
+            blades: 2,
+            array_ids: vec![1],
+            clocks: Vec::new(),
+            airframe: None,
+            rows: (0..=1200).map(row).collect(),
+        };
+        // The inputs spanned 0–12 s but the tracker gave no fix: the median is undefined.
+        let summary = metrics::evaluate(&[], &truth, 0.1, 0.0, 12.0, 0);
+        assert!(summary.median_m.is_nan() && summary.due > 100);
+        let run = TrackRun { kind: FilterKind::Aim, summary, latency: Default::default() };
+        let line = no_fix_line("s", &run).expect("no fixes");
+        assert_eq!(
+            line,
+            format!("s aim: no fix to compare with the truth (0 of {} due)", run.summary.due)
+        );
+    }
 }

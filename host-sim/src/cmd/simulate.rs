@@ -1,8 +1,11 @@
 //! `host-sim simulate`: run a scenario and write the recordings, the truth and the site file.
 //!
-//! A scenario whose simulation would need more memory than `--max-memory-mb` is refused
-//! before anything is computed, with the estimate ([`Scenario::memory_estimate_bytes`]).
-//! A recording with a sample that is not finite is never written.
+//! The audio is written to disk block by block as it is rendered
+//! ([`host_sim::write_streamed`]), so memory does not grow with the duration but for the flight
+//! log and the truth; a scenario whose simulation would still need more memory than
+//! `--max-memory-mb` is refused before anything is computed, with the estimate
+//! ([`Scenario::memory_estimate_bytes`]). A recording with a sample that is not finite is never
+//! written.
 use std::path::PathBuf;
 
 use anyhow::Context as _;
@@ -40,33 +43,18 @@ pub fn check_memory(scenario: &Scenario, max_mb: u64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The first sample of `sim` that is not finite: (array id, microphone, sample index).
-pub fn first_non_finite(sim: &host_sim::Simulation) -> Option<(u8, usize, usize)> {
-    sim.arrays.iter().find_map(|a| {
-        a.channels
-            .iter()
-            .enumerate()
-            .find_map(|(m, ch)| ch.iter().position(|x| !x.is_finite()).map(|k| (a.id, m, k)))
-    })
-}
-
 /// Runs `host-sim simulate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scenario = Scenario::load(&args.scenario)?;
     check_memory(&scenario, args.max_memory_mb)?;
     let progress = host_sim::progress_bar("simulating");
-    let sim =
-        host_sim::simulate_with(&scenario, &host_sim::Options { threads: args.threads }, &progress)
-            .with_context(|| format!("simulating {}", args.scenario.display()))?;
-    if let Some((id, mic, k)) = first_non_finite(&sim) {
-        anyhow::bail!(
-            "{}: the simulation produced a sample that is not a number (array {id}, microphone \
-             {mic}, sample {k}); nothing written. Some value of the scenario is out of the \
-             simulator's range",
-            args.scenario.display()
-        );
-    }
-    sim.write(&args.out)?;
+    let sim = host_sim::write_streamed(
+        &scenario,
+        &host_sim::Options { threads: args.threads },
+        &progress,
+        &args.out,
+    )
+    .with_context(|| format!("simulating {}", args.scenario.display()))?;
     eprintln!(
         "{}: {:.1} s, {} array(s) → {}",
         scenario.name,
