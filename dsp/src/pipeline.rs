@@ -95,6 +95,10 @@ pub struct Pipeline {
     health_start: u64,
     health_blocks: u32,
     health_peak: u32,
+    /// Per microphone, Σ (x >> 8)² over the first block of the Health interval.
+    level_power: [u64; MAX_MICS],
+    /// Per microphone, the DC estimate at that block.
+    level_dc: [i32; MAX_MICS],
     // gaps
     gap_stats: GapStats,
     /// Real (input-rate) samples skipped by gaps: the spectral path's stamps count only the
@@ -141,6 +145,8 @@ impl Pipeline {
             health_start: 0,
             health_blocks: 0,
             health_peak: 0,
+            level_power: [0; MAX_MICS],
+            level_dc: [0; MAX_MICS],
             gap_stats: GapStats { gaps: 0, frames_lost: 0, outputs_dropped: 0 },
             spectral_skipped: 0,
             spectral_clean_from: 0,
@@ -342,6 +348,9 @@ impl Pipeline {
         let shift = frontend::block_shift(peak);
         self.last_exponent = self.q_exponent() - shift as i8;
         self.health_peak = self.health_peak.max(peak);
+        if self.health_blocks == 0 {
+            self.probe_levels();
+        }
 
         self.spatial_block(shift);
         if self.averaged == 0 {
@@ -478,15 +487,40 @@ impl Pipeline {
         }
     }
 
+    /// Measures each microphone's level in the block just filled (once per Health interval:
+    /// about 0.1 % of the samples, so its cost is negligible).
+    fn probe_levels(&mut self) {
+        let n = self.fft_len;
+        for mic in 0..self.mics {
+            // (x >> 8)² < 2^46, so 1024 of them fit a u64.
+            let power = self.block[mic][..n]
+                .iter()
+                .map(|&x| (i64::from(x >> 8) * i64::from(x >> 8)) as u64);
+            self.level_power[mic] = power.fold(0u64, u64::wrapping_add);
+            self.level_dc[mic] = self.front.dc(mic);
+        }
+    }
+
     fn take_health(&mut self) -> Health {
         let full_scale = (1u64 << (31 - self.q_exponent())) as f32;
         let peak = self.health_peak as f32 / full_scale;
+        let db = |ratio: f32| if ratio > 0.0 { 20.0 * libm::log10f(ratio) } else { -200.0 };
+        let mut mic_rms_dbfs = [-200.0f32; MAX_MICS];
+        let mut mic_dc_dbfs = [-200.0f32; MAX_MICS];
+        for mic in 0..self.mics {
+            let mean_square = self.level_power[mic] as f32 / self.fft_len as f32;
+            mic_rms_dbfs[mic] = db(libm::sqrtf(mean_square) * 256.0 / full_scale);
+            mic_dc_dbfs[mic] = db(self.level_dc[mic].unsigned_abs() as f32 / full_scale);
+        }
         let h = Health {
             sample_index: self.health_start,
             blocks: self.blocks,
             clipped_samples: self.front.clipped,
-            peak_dbfs: if peak > 0.0 { 20.0 * libm::log10f(peak) } else { -200.0 },
+            peak_dbfs: db(peak),
             block_exponent: self.last_exponent,
+            mics: self.mics as u8,
+            mic_rms_dbfs,
+            mic_dc_dbfs,
         };
         self.front.clipped = 0;
         self.health_peak = 0;

@@ -10,27 +10,52 @@
 //! The `Health` counters are cumulative since the board started; across a restart (a counter
 //! going down) the totals keep what the previous boot had reached, so nothing reported is lost.
 //!
-//! **Microphone health.** The wire carries no per-microphone level or per-pair coherence: a
-//! `Health` frame has the clipping count and the peak over all microphones, a `Doa` frame the
-//! number of pairs that carried weight in the fit (`pairs_used`). A microphone that gives no
-//! signal (dead, or stuck at a constant that the front end's high-pass removes) makes every
-//! pair it belongs to incoherent, so the fit loses those n − 1 of the n(n−1)/2 pairs on
-//! every frame. [`MicHealth`] flags an array whose recent fits all used at most
-//! n(n−1)/2 − (n−1) pairs (host-sim's `dead_mics` test: 10 of 15 on every fit, a healthy array
-//! 15). Two things need a wire field the firmware does not send yet: *which* microphone it is,
-//! and a microphone *stuck* at a constant, whose pairs still carry weight in every fit (PHAT
-//! normalises the constant's spectral leakage into a "signal"). The fields that would do it:
-//! in `Health`, per microphone the RMS level over the interval (`mic_rms_cdbfs: [i16; n]`,
-//! 0.01 dBFS; dead: far below the others; stuck: AC level near zero with a DC offset, so also
-//! `mic_dc_cdbfs`); or in `Doa`, a bit mask of the pairs used (`pairs_mask: u32`, 28 pairs of
-//! 8 microphones): the microphone common to every dropped pair is the dead one.
+//! **Microphone health**, from two kinds of evidence:
+//! - *levels* (`Health` frames of firmware that sends [`aim_wire::MicLevels`]): a microphone
+//!   whose DC-removed level stays more than [`SILENT_BELOW_LOUDEST_DB`] under the array's
+//!   loudest microphone for [`SILENT_INTERVALS`] `Health` intervals in a row is faulty: *stuck*
+//!   when its DC level is above [`STUCK_DC_DBFS`] (a constant word the front end's high-pass
+//!   removes), *dead* otherwise (silent). This names the microphone.
+//! - *direction fits* (any firmware): a `Doa` frame says how many pairs carried weight in the
+//!   fit (`pairs_used`). A silent microphone makes every pair it belongs to incoherent, so the
+//!   fit loses those n − 1 of the n(n−1)/2 pairs on every frame; [`MicHealth::suspect`] also
+//!   flags an array whose recent fits all used at most n(n−1)/2 − (n−1) pairs (host-sim's
+//!   `dead_mics` test: 10 of 15 on every fit, a healthy array 15). A microphone stuck at a
+//!   constant keeps its pairs (PHAT normalises the constant's leakage into a "signal"), so only
+//!   the levels catch it.
 use std::collections::BTreeMap;
 
-use aim_wire::{Body, Frame, Health, LinkStats};
+use aim_wire::{Body, Frame, Health, LinkStats, MicLevels};
 use serde_json::{json, Value};
 
 /// Direction fits looked at for the microphone-health flag.
 pub const MIC_HEALTH_WINDOW: usize = 32;
+/// A microphone this far under the array's loudest one is silent, dB (a working array's
+/// microphones hear the same sound within a few dB).
+pub const SILENT_BELOW_LOUDEST_DB: f32 = 30.0;
+/// `Health` intervals (about 1 s each) a microphone must be silent in a row to be flagged.
+pub const SILENT_INTERVALS: u32 = 3;
+/// A silent microphone with a DC level above this is stuck at a constant, not dead, dBFS.
+pub const STUCK_DC_DBFS: f32 = -60.0;
+
+/// What is wrong with a microphone, as its levels show it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MicFault {
+    /// No signal and no DC: disconnected, unpowered or broken.
+    Dead,
+    /// A constant word: no signal but a DC level.
+    Stuck,
+}
+
+impl MicFault {
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            MicFault::Dead => "dead",
+            MicFault::Stuck => "stuck",
+        }
+    }
+}
 
 /// The `Health` counters that count since the board started, summed over its boots.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -96,6 +121,9 @@ pub struct MicHealth {
     pub mics: usize,
     /// `pairs_used` of the newest direction fits, oldest first (at most [`MIC_HEALTH_WINDOW`]).
     recent_pairs: std::collections::VecDeque<u8>,
+    /// Per microphone (slot order): `Health` intervals in a row it was silent in, and its
+    /// newest DC level, dBFS.
+    silent: Vec<(u32, i16)>,
 }
 
 impl MicHealth {
@@ -111,6 +139,36 @@ impl MicHealth {
         self.recent_pairs.push_back(pairs_used);
     }
 
+    fn push_levels(&mut self, levels: &MicLevels) {
+        let n = usize::from(levels.count).min(levels.rms_ddbfs.len());
+        if n < 2 {
+            return;
+        }
+        self.silent.resize(n, (0, 0));
+        let loudest = levels.rms_ddbfs[..n].iter().copied().max().unwrap_or(i16::MIN);
+        for (i, s) in self.silent.iter_mut().enumerate() {
+            let under_db = (f32::from(loudest) - f32::from(levels.rms_ddbfs[i])) / 10.0;
+            *s = if under_db > SILENT_BELOW_LOUDEST_DB {
+                (s.0.saturating_add(1), levels.dc_ddbfs[i])
+            } else {
+                (0, levels.dc_ddbfs[i])
+            };
+        }
+    }
+
+    /// Microphones (slot indices) their levels show faulty, with the fault.
+    pub fn faults(&self) -> Vec<(usize, MicFault)> {
+        self.silent
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.0 >= SILENT_INTERVALS)
+            .map(|(i, s)| {
+                let stuck = f32::from(s.1) / 10.0 > STUCK_DC_DBFS;
+                (i, if stuck { MicFault::Stuck } else { MicFault::Dead })
+            })
+            .collect()
+    }
+
     /// Most pairs any of the recent fits used (None before any fit).
     pub fn recent_max_pairs(&self) -> Option<u8> {
         self.recent_pairs.iter().copied().max()
@@ -123,6 +181,32 @@ impl MicHealth {
         n >= 3
             && self.recent_pairs.len() == MIC_HEALTH_WINDOW
             && self.recent_max_pairs().is_some_and(|m| usize::from(m) <= self.pairs() - (n - 1))
+    }
+
+    /// Whether anything points at a faulty microphone: its levels, or the direction fits.
+    pub fn flagged(&self) -> bool {
+        self.suspect() || !self.faults().is_empty()
+    }
+
+    /// The faulty microphones as text (`"mic 2 dead, mic 4 stuck"`), or the fits' evidence.
+    pub fn describe(&self) -> String {
+        let faults = self.faults();
+        if faults.is_empty() {
+            return format!(
+                "its last {MIC_HEALTH_WINDOW} direction fits used at most {} of its {} \
+                 microphone pairs: a microphone looks dead or stuck (these frames do not say \
+                 which one)",
+                self.recent_max_pairs().unwrap_or(0),
+                self.pairs()
+            );
+        }
+        let list: Vec<String> =
+            faults.iter().map(|(i, f)| format!("microphone {i} {}", f.name())).collect();
+        format!(
+            "{} (more than {SILENT_BELOW_LOUDEST_DB} dB under the loudest microphone for \
+             {SILENT_INTERVALS} s or more)",
+            list.join(", ")
+        )
     }
 }
 
@@ -196,6 +280,7 @@ impl ArrayStatus {
                 self.board = BoardCounters::from_fields(std::array::from_fn(|i| e[i] + c[i]));
                 self.clipped_samples += u64::from(h.clipped_samples);
                 self.peak_dbfs = Some(f64::from(h.peak_ddbfs) / 10.0);
+                self.mic.push_levels(&h.mic_levels);
             }
             Body::Doa(d) => self.mic.push(d.pairs_used),
             _ => {}
@@ -219,7 +304,8 @@ impl ArrayStatus {
             "sample_gaps": b.sample_gaps,
             "frames_lost": b.frames_lost,
             "clipped_samples": self.clipped_samples,
-            "mic_suspect": self.mic.suspect(),
+            "mic_suspect": self.mic.flagged(),
+            "mic_faults": self.mic.faults().iter().map(|(i, f)| json!({"mic": i, "fault": f.name()})).collect::<Vec<_>>(),
         });
         if let (Some(now), Some(at)) = (now_s, self.last_frame_at_s) {
             v["last_frame_age_s"] = json!(((now - at).max(0.0) * 10.0).round() / 10.0);
@@ -264,15 +350,9 @@ impl Status {
         match self.arrays.get_mut(&id) {
             Some(a) => {
                 a.observe(frame, now_s);
-                if a.mic.suspect() && !self.mic_warned.contains(&id) {
+                if a.mic.flagged() && !self.mic_warned.contains(&id) {
                     self.mic_warned.push(id);
-                    self.warnings.push(format!(
-                        "array {id}: its last {MIC_HEALTH_WINDOW} direction fits used at most {} \
-                         of its {} microphone pairs: a microphone looks dead or stuck (the \
-                         frames do not say which one)",
-                        a.mic.recent_max_pairs().unwrap_or(0),
-                        a.mic.pairs()
-                    ));
+                    self.warnings.push(format!("array {id}: {}", a.mic.describe()));
                 }
             }
             None => {
@@ -333,7 +413,12 @@ impl Status {
                 b.uart_errors,
                 a.clipped_samples,
             );
-            if a.mic.suspect() {
+            let faults = a.mic.faults();
+            if !faults.is_empty() {
+                for (i, f) in faults {
+                    s += &format!(", MICROPHONE {i} {}", f.name().to_uppercase());
+                }
+            } else if a.mic.suspect() {
                 s += ", MICROPHONE DEAD OR STUCK?";
             }
         }

@@ -74,7 +74,13 @@ fn encode_raw(frame: &Frame, raw: &mut [u8; MAX_RAW_LEN]) -> Result<usize, Encod
         }),
         Body::Doa(p) => postcard::to_slice(p, payload).map(|s| s.len()),
         Body::Peaks(p) => postcard::to_slice(p, payload).map(|s| s.len()),
-        Body::Health(p) => postcard::to_slice(p, payload).map(|s| s.len()),
+        Body::Health(p) => postcard::to_slice(p, payload).map(|s| s.len()).and_then(|n| {
+            // The microphone levels are appended only when there are any.
+            match p.mic_report() {
+                Some(mics) => postcard::to_slice(&mics, &mut payload[n..]).map(|s| n + s.len()),
+                None => Ok(n),
+            }
+        }),
     }
     .map_err(|_| EncodeError::Payload)?;
     at += written;

@@ -99,7 +99,8 @@ impl Kind {
             Kind::Peaks => 5 + 5 + 1 + MAX_PEAKS * (5 + 3 + 1),
             // blocks, clipped u32 5 each + peak i16 3 + exponent i8 1
             // + cycles, overruns, dropped u32 5 each + queue depth 1 + 9 loss counters u32 5 each
-            Kind::Health => 5 + 5 + 3 + 1 + 5 * 3 + 1 + 9 * 5,
+            // + microphone count 1 + 8 x (rms, dc) i16 3 each
+            Kind::Health => 5 + 5 + 3 + 1 + 5 * 3 + 1 + 9 * 5 + 1 + MAX_MICS * 2 * 3,
         }
     }
 
@@ -655,6 +656,37 @@ pub struct Health {
     pub frames_unencodable: u32,
     /// Capture chunks handed to the DSP.
     pub chunks_captured: u32,
+    /// Per-microphone levels (appended after `chunks_captured`, rule 3; sent only when
+    /// `mic_levels.count > 0`, so a `Health` without them keeps its bytes).
+    #[serde(skip)]
+    pub mic_levels: MicLevels,
+}
+
+/// Each microphone's level in the first block of a [`Health`] interval, from the DSP front end:
+/// what tells a dead or stuck microphone from a working one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MicLevels {
+    /// Microphones reported (0: none; at most [`MAX_MICS`]).
+    pub count: u8,
+    /// RMS of each microphone's DC-removed signal, units of 0.1 dBFS (−2000: all zero).
+    pub rms_ddbfs: [i16; MAX_MICS],
+    /// Each microphone's DC level, units of 0.1 dBFS (−2000: zero).
+    pub dc_ddbfs: [i16; MAX_MICS],
+}
+
+impl MicLevels {
+    /// `(rms, dc)` of microphone `mic` in dBFS, or `None` past `count`.
+    pub fn level_dbfs(&self, mic: usize) -> Option<(f32, f32)> {
+        (mic < usize::from(self.count).min(MAX_MICS))
+            .then(|| (f32::from(self.rms_ddbfs[mic]) * 0.1, f32::from(self.dc_ddbfs[mic]) * 0.1))
+    }
+}
+
+/// The per-microphone levels appended to [`Health`] (sent only when there are any).
+#[derive(Serialize, Deserialize)]
+pub(crate) struct HealthMics {
+    /// `[rms, dc]` per microphone, units of 0.1 dBFS.
+    pub(crate) levels: heapless::Vec<[i16; 2], MAX_MICS>,
 }
 
 /// The part of a [`Health`] payload every version has.
@@ -687,7 +719,7 @@ struct HealthLosses {
 impl Health {
     /// Decodes a payload; the appended counters are 0 when absent (older firmware).
     pub(crate) fn from_payload(payload: &[u8]) -> postcard::Result<Health> {
-        let (b, losses, _) = base_and_appended::<HealthBase, HealthLosses>(payload)?;
+        let (b, losses, rest) = base_and_appended::<HealthBase, HealthLosses>(payload)?;
         let mut health = Health {
             blocks: b.blocks,
             clipped_samples: b.clipped_samples,
@@ -710,6 +742,25 @@ impl Health {
             health.frames_unencodable = l.frames_unencodable;
             health.chunks_captured = l.chunks_captured;
         }
+        if !rest.is_empty() {
+            let (mics, _) = postcard::take_from_bytes::<HealthMics>(rest)?;
+            let levels = &mut health.mic_levels;
+            levels.count = mics.levels.len() as u8;
+            for (i, [rms, dc]) in mics.levels.iter().enumerate() {
+                levels.rms_ddbfs[i] = *rms;
+                levels.dc_ddbfs[i] = *dc;
+            }
+        }
         Ok(health)
+    }
+
+    /// The per-microphone levels, when they are to be sent.
+    pub(crate) fn mic_report(&self) -> Option<HealthMics> {
+        let n = usize::from(self.mic_levels.count).min(MAX_MICS);
+        (n > 0).then(|| HealthMics {
+            levels: (0..n)
+                .map(|i| [self.mic_levels.rms_ddbfs[i], self.mic_levels.dc_ddbfs[i]])
+                .collect(),
+        })
     }
 }

@@ -13,7 +13,7 @@
 //! assert!(n > 0);
 //! ```
 
-use crate::frame::{Body, Doa, Health, Hello, Peak, Peaks, MAX_PEAKS};
+use crate::frame::{Body, Doa, Health, Hello, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS};
 use crate::{fixed, EncodeError, Encoder};
 
 /// What the firmware knows and the DSP does not; goes into [`Health`] frames. All zero in
@@ -107,7 +107,18 @@ pub fn health(h: &aim_dsp::Health, firmware: &FirmwareCounters) -> Health {
         uart_errors: firmware.uart_errors,
         frames_unencodable: firmware.frames_unencodable,
         chunks_captured: firmware.chunks_captured,
+        mic_levels: mic_levels(h),
     }
+}
+
+/// The DSP's per-microphone levels at the wire's 0.1 dB.
+fn mic_levels(h: &aim_dsp::Health) -> MicLevels {
+    let mut levels = MicLevels { count: h.mics.min(MAX_MICS as u8), ..MicLevels::default() };
+    for i in 0..usize::from(levels.count) {
+        levels.rms_ddbfs[i] = fixed::to_i16(h.mic_rms_dbfs[i], 10.0);
+        levels.dc_ddbfs[i] = fixed::to_i16(h.mic_dc_dbfs[i], 10.0);
+    }
+    levels
 }
 
 /// The frame body and sample index of one pipeline output.

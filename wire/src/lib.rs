@@ -106,8 +106,8 @@ pub use deframe::{decode, DecodeError, Deframer, Feed, LinkStats, DEFAULT_CAPACI
 pub use encode::{encode, EncodeError, Encoder};
 pub use frame::{
     derived_array_id, reserved, stm32h7_revision_name, Body, ClockSource, Doa, Frame, Header,
-    Health, Hello, Kind, Peak, Peaks, ResetCause, MAX_MICS, MAX_PANIC_MESSAGE, MAX_PEAKS,
-    UNIQUE_ID_LEN,
+    Health, Hello, Kind, MicLevels, Peak, Peaks, ResetCause, MAX_MICS, MAX_PANIC_MESSAGE,
+    MAX_PEAKS, UNIQUE_ID_LEN,
 };
 
 /// First byte of every raw frame.

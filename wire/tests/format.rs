@@ -42,7 +42,7 @@ fn max_encoded_size_per_kind() {
         (Kind::Hello, 156, 159),
         (Kind::Doa, 36, 39),
         (Kind::Peaks, 67, 70),
-        (Kind::Health, 95, 98),
+        (Kind::Health, 144, 147),
     ];
     for (kind, raw_len, wire_len) in expected {
         let frame = worst_case(kind);
@@ -289,10 +289,16 @@ fn unknown_version_is_skipped_and_counted() {
 #[test]
 fn appended_payload_fields_are_ignored() {
     // Rule 3: a later firmware appends fields; this version reads the prefix it knows. (A
-    // Hello's later fields follow the chip and clock report, which is then always sent.)
+    // Hello's later fields follow the chip and clock report, and a Health's the microphone
+    // levels, which are then always sent.)
     for mut frame in sample_frames() {
         if let Body::Hello(h) = &mut frame.body {
             (h.chip_revision, h.clock_source, h.sysclk_hz) = (0x2003, 1, 480_000_000);
+        }
+        if let Body::Health(h) = &mut frame.body {
+            h.mic_levels.count = 2;
+            h.mic_levels.rms_ddbfs[..2].copy_from_slice(&[-412, -2000]);
+            h.mic_levels.dc_ddbfs[..2].copy_from_slice(&[-655, -2000]);
         }
         let mut longer = strip_crc(&raw(&frame)).to_vec();
         longer.extend_from_slice(&[0x05, 0x7F, 0x00, 0x01]);

@@ -102,6 +102,13 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
             "uart_errors": p.uart_errors,
             "frames_unencodable": p.frames_unencodable,
             "chunks_captured": p.chunks_captured,
+            // Per microphone in slot order, dBFS (empty when the board sends none).
+            "mic_rms_dbfs": (0..usize::from(p.mic_levels.count))
+                .filter_map(|i| p.mic_levels.level_dbfs(i).map(|l| f64::from(l.0)))
+                .collect::<Vec<_>>(),
+            "mic_dc_dbfs": (0..usize::from(p.mic_levels.count))
+                .filter_map(|i| p.mic_levels.level_dbfs(i).map(|l| f64::from(l.1)))
+                .collect::<Vec<_>>(),
         }),
         // A kind added to aim-wire but not yet here: header only.
         #[allow(unreachable_patterns)]

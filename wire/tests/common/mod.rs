@@ -92,6 +92,8 @@ pub fn sample_frames() -> Vec<Frame> {
                 uart_errors: 0,
                 frames_unencodable: 0,
                 chunks_captured: 562_688,
+                // Without the per-microphone levels: the bytes of a board that sends none.
+                mic_levels: aim_wire::MicLevels::default(),
             }),
         },
     ]
@@ -158,6 +160,11 @@ pub fn worst_case(kind: Kind) -> Frame {
             uart_errors: u32::MAX,
             frames_unencodable: u32::MAX,
             chunks_captured: u32::MAX,
+            mic_levels: aim_wire::MicLevels {
+                count: aim_wire::MAX_MICS as u8,
+                rms_ddbfs: [i16::MIN; aim_wire::MAX_MICS],
+                dc_ddbfs: [i16::MIN; aim_wire::MAX_MICS],
+            },
         }),
         _ => unreachable!("a kind without a worst case: add it here"),
     };
@@ -223,6 +230,15 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
             uart_errors: small(rng),
             frames_unencodable: small(rng),
             chunks_captured: small(rng),
+            mic_levels: {
+                let count = rng.below(aim_wire::MAX_MICS + 1) as u8;
+                let mut levels = aim_wire::MicLevels { count, ..aim_wire::MicLevels::default() };
+                for i in 0..usize::from(count) {
+                    levels.rms_ddbfs[i] = rng.u64() as i16;
+                    levels.dc_ddbfs[i] = rng.u64() as i16;
+                }
+                levels
+            },
         }),
     };
     Frame { header, body }
