@@ -166,8 +166,9 @@ pub struct MotionConfig {
     pub steady_frames: usize,
     /// Largest spread (max − min) of the steady frames, in single-frame spreads.
     pub steady_sigmas: f64,
-    /// Still with a split is a yaw only when at least this many fresh frames show it (a
-    /// real airframe's static imbalance shows as a split in single frames now and then).
+    /// Still with a split is a yaw only when at least two fresh frames show it, and all of
+    /// them up to this many (a real airframe's static imbalance shows as a split in single
+    /// frames now and then).
     pub yaw_min_frames: usize,
 }
 
@@ -470,7 +471,9 @@ impl MotionClassifier {
         let splits = fresh.iter().filter(|f| f.split).count();
         let split = splits > 0;
         match self.phase {
-            Phase::Still if splits >= c.yaw_min_frames.max(1) => MotionClass::Yaw,
+            Phase::Still if splits >= 2 && splits >= fresh.len().min(c.yaw_min_frames) => {
+                MotionClass::Yaw
+            }
             Phase::Still => MotionClass::Hover,
             // A DoA moving in zenith alone, with one rotor speed, is a climb or descent.
             Phase::Moving if doa_moving && zenith_only && !split => MotionClass::Vertical,
