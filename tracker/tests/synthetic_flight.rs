@@ -237,7 +237,7 @@ fn motion_class_is_right_in_nine_frames_of_ten() {
 }
 
 #[test]
-fn aim_beats_paper_and_is_always_available() {
+fn both_filters_are_always_available_and_within_their_measured_errors() {
     let truth = Profile::dji_mini_2();
     // The tracker's profile has k_v 15 % off: hover self-calibration must absorb it.
     let mut given = truth.clone();
@@ -257,7 +257,10 @@ fn aim_beats_paper_and_is_always_available() {
         aim.fixes.len(),
         aim.expected_fixes
     );
-    // The claim: the position–velocity mixture with speed and motion-class updates beats the
-    // paper's position-only filter on the same cues.
-    assert!(ea < ep, "aim {ea:.2} m vs paper {ep:.2} m");
+    // Guards of what each reaches now (measured: aim 2.29 m, paper 0.84 m). The claim "aim
+    // beats paper" held against the untuned single-step paper filter; against the windowed
+    // eq. (5) baseline (issue 12 item 4) it does not hold on this flight, so it is not
+    // asserted here (BENCHMARKS.md, "Paper baseline, tuned").
+    assert!(ep < 1.2, "paper {ep:.2} m");
+    assert!(ea < 3.0, "aim {ea:.2} m");
 }
