@@ -1,7 +1,8 @@
 //! The project's filter: a Gaussian mixture of position–velocity EKFs (ALGORITHMS.md §8).
 //!
 //! With one array, range is observable only through motion: bearings give the direction, the
-//! DoA rate gives velocity *over range*, and the acoustic speed fixes the scale. The first
+//! DoA rate gives velocity *over range*, and the acoustic speed and the Doppler of the BPF
+//! lines ([`crate::doppler`]) fix the scale. The first
 //! bearing therefore spawns hypotheses spread geometrically along the ray; each is an EKF with
 //! bearing, speed and motion-class updates, weighted by its measurement likelihoods. The
 //! mixture's covariance (spread of hypotheses included) is reported honestly.
