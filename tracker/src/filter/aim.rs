@@ -544,4 +544,63 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn a_leg_from_rest_spreads_a_collapsed_mixture_along_the_ray_again() {
+        // A mixture that has collapsed onto 2 m (every hypothesis there) hovers, then starts a
+        // leg: the ranges come back from range_min to range_max, the heaviest near 2 m, and
+        // every range keeps at least its share of the floor.
+        let c = AimConfig::default();
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let mut filter = AimFilter::new(c.clone());
+        let mut rng = crate::testutil::Rng::new(3);
+        let truth = [5.0, 3.0, 2.0];
+        let collapsed = 2.0 / crate::observation::norm(truth);
+        let here = truth.map(|x| x * collapsed);
+        let mut cov = Mat::identity(STATE).scaled(0.01);
+        cov[(LN_REST, LN_REST)] = 1e-4;
+        filter.components =
+            vec![(0.0, Ekf::new([here[0], here[1], here[2], 0.0, 0.0, 0.0, 0.0, 0.0], cov))];
+        let speed = AcousticSpeed {
+            horizontal: 0.0,
+            horizontal_sigma: 0.1,
+            vertical: 0.0,
+            vertical_sigma: 0.05,
+            horizontal_accel: 0.0,
+            accelerating: false,
+        };
+        for (k, motion) in [MotionClass::Hover, MotionClass::Hover, MotionClass::Horizontal]
+            .into_iter()
+            .enumerate()
+        {
+            let step = Step {
+                t: k as f64 * 0.1,
+                dt: 0.1,
+                array: &array,
+                doa: Some(doa(k as f64 * 0.1, truth, &mut rng)),
+                los: true,
+                motion,
+                speed,
+                room: None,
+                cruise_speeds: None,
+                doppler: Vec::new(),
+                speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
+            };
+            filter.step(&step);
+        }
+        assert_eq!(filter.hypotheses(), c.hypotheses * c.leg_headings);
+        let range = |f: &Ekf| crate::observation::norm(f.position());
+        let (lo, hi) = filter
+            .components
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(l, h), (_, f)| (l.min(range(f)), h.max(range(f))));
+        assert!(lo < 1.2 * c.range_min_m && hi > 0.8 * c.range_max_m, "{lo}..{hi}");
+        let (_, heaviest) = filter.components.iter().max_by(|a, b| a.0.total_cmp(&b.0)).unwrap();
+        assert!((range(heaviest) - 2.0).abs() < 0.6, "heaviest at {} m", range(heaviest));
+        let least = (c.respread_floor / filter.hypotheses() as f64).ln();
+        assert!(
+            filter.components.iter().all(|(lw, _)| *lw >= least - 0.5),
+            "a range lost its floor"
+        );
+    }
 }
