@@ -4,6 +4,7 @@
 //! - [`observation`]: the plain inputs (bearings, BPF peaks);
 //! - [`iqr`], [`doa`]: IQR smoothing, DoA trend and the LoS decision per array;
 //! - [`motion`]: motion classes (paper Table I);
+//! - [`doppler`]: the Doppler of the BPF lines, the range cue of one array;
 //! - [`dynamics`]: thrust, hover self-calibration, accelerations and speeds;
 //! - [`filter`]: the paper's position-only Kalman filter and the `aim` EKF mixture;
 //! - [`tracker`]: the pipeline that runs them at a fixed output period;
@@ -15,6 +16,7 @@
 
 pub mod config;
 pub mod doa;
+pub mod doppler;
 pub mod dynamics;
 pub mod exit;
 pub mod filter;

@@ -261,9 +261,11 @@ mod tests {
             ("i_z = 7.5e-4", "i_z = nan", "i_z must be positive"),
             ("k_v = 2.27e-5", "k_v = 1e-320", "hover BPF"),
             ("bpf_min_hz = 200.0", "bpf_min_hz = 1e-300", "bpf_min_hz must be 10 to"),
-            ("wake_loss_per_mps = 0.02", "wake_loss_per_mps = 1e9", "wake_loss_per_mps must be"),
+            ("", "wake_loss_per_mps = 1e9", "wake_loss_per_mps must be"),
         ] {
-            let bad = good.replace(from, to);
+            // An empty `from` appends the line (the bundled profile has no wake constant).
+            let bad =
+                if from.is_empty() { format!("{good}{to}\n") } else { good.replace(from, to) };
             let line = bad.lines().position(|l| l.starts_with(to)).unwrap() + 1;
             let e = Profile::parse(&bad, Path::new("p.toml")).unwrap_err();
             assert_eq!(e.line, Some(line), "{to}: {e}");

@@ -7,6 +7,7 @@
 use std::collections::VecDeque;
 
 use crate::doa::{DoaConfig, DoaState, DoaWindow};
+use crate::doppler::{DopplerFrame, FrameCentre, DEFAULT_SPEED_OF_SOUND_MPS};
 use crate::dynamics::{sum_bpf_squared, AcousticSpeed, HoverCalibration, SpeedIntegrator};
 use crate::filter::{new_filter, Filter, FilterKind, Step};
 use crate::motion::{
@@ -35,6 +36,8 @@ struct BpfFrame {
     yaw_split: bool,
     /// The groups' BPFs as heard (not normalised), Hz.
     hz: Vec<f64>,
+    /// The groups' BPFs normalised by the hover pattern and merged, Hz.
+    normalised_hz: Vec<f64>,
 }
 
 /// Tunables of the pipeline.
@@ -187,6 +190,10 @@ pub struct Tracker {
     pattern: HoverPattern,
     /// Time of the newest spectrum frame the pattern learnt from, s.
     pattern_last_t: f64,
+    /// Each BPF frame's centre frequency for the Doppler cue.
+    centre: FrameCentre,
+    /// Time of the newest spectrum frame given to the Doppler cue, s.
+    doppler_last_t: f64,
     filter: Box<dyn Filter + Send>,
     kind: FilterKind,
     /// Index of the next output instant (instants are `k · output_period_s`).
@@ -248,6 +255,8 @@ impl Tracker {
             wake_last_t: f64::NEG_INFINITY,
             pattern: HoverPattern::default(),
             pattern_last_t: f64::NEG_INFINITY,
+            centre: FrameCentre::default(),
+            doppler_last_t: f64::NEG_INFINITY,
             filter: new_filter(kind),
             kind,
             audio: VecDeque::new(),
@@ -352,6 +361,8 @@ impl Tracker {
         self.split = WakeSplit::new(WakeConfig::split(), self.profile.wake_split_per_mps());
         self.wake_last_t = f64::NEG_INFINITY;
         self.pattern_last_t = f64::NEG_INFINITY;
+        self.centre = FrameCentre::default();
+        self.doppler_last_t = f64::NEG_INFINITY;
         self.filter = new_filter(self.kind);
         self.spectra.clear();
         self.last_output = None;
@@ -481,6 +492,7 @@ impl Tracker {
             }
         }
         let hz: Vec<f64> = heard.iter().map(|g| g.hz).collect();
+        let normalised_hz: Vec<f64> = groups.iter().map(|g| g.hz).collect();
         let yaw_split = match groups.as_slice() {
             // Against the hover BPF only once a hover has calibrated it (the profile's may be
             // off by more than the threshold).
@@ -492,10 +504,11 @@ impl Tracker {
         };
         if yaw_split {
             let sum_sq = self.calibration.hover_sum_sq();
-            let frame = BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split, hz };
+            let frame = BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split, hz, normalised_hz };
             self.spectra.push_back(frame);
         } else if let Some(sum_sq) = sum_bpf_squared(&groups, self.profile.rotors()) {
-            let frame = BpfFrame { t: s.t, sum_sq, groups: groups.len(), yaw_split, hz };
+            let frame =
+                BpfFrame { t: s.t, sum_sq, groups: groups.len(), yaw_split, hz, normalised_hz };
             self.spectra.push_back(frame);
         }
         let horizon = c.excess_window_s.max(c.split_memory_s) + c.stale_s;
@@ -571,6 +584,15 @@ impl Tracker {
         let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
         let (cruise_speeds, wake_settled) = self.wake_speeds(t, motion, &mut speed);
         let los = doa.is_some_and(|d| d.los);
+        // Every BPF frame once, as its centre frequency (a yaw's split is no wake: left out).
+        let since = std::mem::replace(&mut self.doppler_last_t, t);
+        let f_ref = self.profile.hover_bpf_hz();
+        let doppler: Vec<DopplerFrame> = self
+            .spectra
+            .iter()
+            .filter(|f| f.t > since && f.t <= t && !f.yaw_split)
+            .filter_map(|f| self.centre.frame(f.t, &f.normalised_hz, f_ref))
+            .collect();
         if self.diagnostics.len() >= DIAGNOSTICS_KEPT {
             self.diagnostics.pop_front();
         }
@@ -590,6 +612,8 @@ impl Tracker {
             speed,
             room: self.site.room,
             cruise_speeds: wake_settled.then_some(cruise_speeds),
+            doppler,
+            speed_of_sound_mps: DEFAULT_SPEED_OF_SOUND_MPS,
         };
         let est = self.filter.step(&step)?;
         let pc = &est.position_covariance;

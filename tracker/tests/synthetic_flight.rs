@@ -225,10 +225,15 @@ fn square() -> Vec<State> {
     plan(&wps, 2.0, 0.005)
 }
 
+/// The drone flown: the bundled Mini 2 with a wake (2 % thrust loss per m/s downstream), which
+/// the tracker's profile does not know.
+fn flown() -> Profile {
+    Profile { wake_loss_per_mps: 0.02, ..Profile::dji_mini_2() }
+}
+
 #[test]
 fn motion_class_is_right_in_nine_frames_of_ten() {
-    let p = Profile::dji_mini_2();
-    let r = run(FilterKind::Aim, &square(), p.clone(), &p, 5);
+    let r = run(FilterKind::Aim, &square(), Profile::dji_mini_2(), &flown(), 5);
     // The goal is 90 %; the classifier lags each start and stop by its windows (DoA trend
     // 1 s, thrust excess 0.8 s, vote 0.5 s), which costs about 1 s per leg here. This guards
     // what it reaches now.
@@ -238,9 +243,9 @@ fn motion_class_is_right_in_nine_frames_of_ten() {
 
 #[test]
 fn both_filters_are_always_available_and_within_their_measured_errors() {
-    let truth = Profile::dji_mini_2();
+    let truth = flown();
     // The tracker's profile has k_v 15 % off: hover self-calibration must absorb it.
-    let mut given = truth.clone();
+    let mut given = Profile::dji_mini_2();
     given.k_v *= 1.15;
     let states = square();
     let aim = run(FilterKind::Aim, &states, given.clone(), &truth, 9);
@@ -257,10 +262,11 @@ fn both_filters_are_always_available_and_within_their_measured_errors() {
         aim.fixes.len(),
         aim.expected_fixes
     );
-    // Guards of what each reaches now (measured: aim 2.29 m, paper 0.84 m). The claim "aim
-    // beats paper" held against the untuned single-step paper filter; against the windowed
-    // eq. (5) baseline (issue 12 item 4) it does not hold on this flight, so it is not
-    // asserted here (BENCHMARKS.md, "Paper baseline, tuned").
-    assert!(ep < 1.2, "paper {ep:.2} m");
-    assert!(ea < 3.0, "aim {ea:.2} m");
+    // Guards of what each reaches now. The flown drone has a wake its profile does not
+    // carry (the profile holds no simulator constant since the Doppler change), so neither
+    // filter has a speed cue from the split: measured aim 6.42 m, paper 11.81 m after the merge
+    // of `doppler` and `paperkf` (with the profile carrying the flown wake, as before: aim
+    // 2.29 m, paper 0.84 m). Neither is a target; they catch a regression that doubles them.
+    assert!(ep < 15.0, "paper {ep:.2} m");
+    assert!(ea < 8.0, "aim {ea:.2} m");
 }

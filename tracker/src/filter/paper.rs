@@ -455,6 +455,8 @@ mod tests {
                 },
                 room: None,
                 cruise_speeds: None,
+                doppler: Vec::new(),
+                speed_of_sound_mps: 343.2,
             };
             let est = filter.step(&step).expect("a fix from the first DoA");
             errors.push((
