@@ -352,7 +352,7 @@ mod tests {
         assert!((ah - G * gamma.tan()).abs() < 1e-9);
         // Yaw: equal pairs give no angular acceleration.
         assert_eq!(
-            yaw_acceleration(p.k_h, 2, p.i_z, 2.0 * 330.0f64.powi(2), 2.0 * 330.0f64.powi(2)),
+            yaw_acceleration(2.72e-7, 2, 7.5e-4, 2.0 * 330.0f64.powi(2), 2.0 * 330.0f64.powi(2)),
             0.0
         );
     }

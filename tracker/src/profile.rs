@@ -6,8 +6,8 @@
 //! blades = 2                    # blades per propeller, n
 //! mass_kg = 0.249
 //! k_v = 2.27e-5                 # thrust coefficient, N/Hz² of rotation frequency (self-calibrated on hover)
-//! k_h = 2.72e-7                 # drag-torque coefficient, N·m/Hz²
-//! i_z = 7.5e-4                  # yaw moment of inertia, kg·m²
+//! k_h = 2.72e-7                 # optional: drag-torque coefficient, N·m/Hz² (0 = unknown)
+//! i_z = 7.5e-4                  # optional: yaw moment of inertia, kg·m² (0 = unknown)
 //! lambda_h = 0.01               # horizontal quadratic drag, N·s²/m²
 //! lambda_v = 0.02               # vertical quadratic drag, N·s²/m²
 //! bpf_min_hz = 200.0            # BPF search range
@@ -62,9 +62,10 @@ pub struct Profile {
     pub mass_kg: f64,
     /// Thrust coefficient k_v, N/Hz² (of rotation frequency): T_i = k_v f_i².
     pub k_v: f64,
-    /// Drag-torque coefficient k_h, N·m/Hz².
+    /// Drag-torque coefficient k_h, N·m/Hz²; 0 when unknown (only the yaw-size estimator
+    /// needs it).
     pub k_h: f64,
-    /// Yaw moment of inertia I_z, kg·m².
+    /// Yaw moment of inertia I_z, kg·m²; 0 when unknown (only the yaw-size estimator needs it).
     pub i_z: f64,
     /// Horizontal quadratic drag λ_h, N·s²/m².
     pub lambda_h: f64,
@@ -88,8 +89,8 @@ struct ProfileFile {
     blades: toml::Spanned<u32>,
     mass_kg: toml::Spanned<f64>,
     k_v: toml::Spanned<f64>,
-    k_h: toml::Spanned<f64>,
-    i_z: toml::Spanned<f64>,
+    k_h: Option<toml::Spanned<f64>>,
+    i_z: Option<toml::Spanned<f64>>,
     lambda_h: toml::Spanned<f64>,
     lambda_v: toml::Spanned<f64>,
     bpf_min_hz: toml::Spanned<f64>,
@@ -153,8 +154,14 @@ impl Profile {
             blades,
             mass_kg: positive(&f.mass_kg, "mass_kg", 1000.0)?,
             k_v: positive(&f.k_v, "k_v", 1.0)?,
-            k_h: positive(&f.k_h, "k_h", 1.0)?,
-            i_z: positive(&f.i_z, "i_z", 1000.0)?,
+            k_h: match &f.k_h {
+                Some(v) => positive(v, "k_h", 1.0)?,
+                None => 0.0,
+            },
+            i_z: match &f.i_z {
+                Some(v) => positive(v, "i_z", 1000.0)?,
+                None => 0.0,
+            },
             lambda_h: non_negative(&f.lambda_h, "lambda_h", 100.0)?,
             lambda_v: non_negative(&f.lambda_v, "lambda_v", 100.0)?,
             bpf_min_hz,
@@ -258,12 +265,13 @@ mod tests {
 
         for (from, to, message) in [
             ("mass_kg = 0.249", "mass_kg = 1e300", "mass_kg must be positive and at most"),
-            ("i_z = 7.5e-4", "i_z = nan", "i_z must be positive"),
+            ("", "i_z = nan", "i_z must be positive"),
             ("k_v = 2.27e-5", "k_v = 1e-320", "hover BPF"),
             ("bpf_min_hz = 200.0", "bpf_min_hz = 1e-300", "bpf_min_hz must be 10 to"),
             ("", "wake_loss_per_mps = 1e9", "wake_loss_per_mps must be"),
         ] {
-            // An empty `from` appends the line (the bundled profile has no wake constant).
+            // An empty `from` appends the line (the bundled profile has no wake constant, k_h
+            // or i_z).
             let bad =
                 if from.is_empty() { format!("{good}{to}\n") } else { good.replace(from, to) };
             let line = bad.lines().position(|l| l.starts_with(to)).unwrap() + 1;
