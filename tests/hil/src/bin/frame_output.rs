@@ -74,6 +74,9 @@ fn output(i: u32) -> Option<Output> {
             clipped_samples: i / 7,
             peak_dbfs: -20.0,
             block_exponent: 3,
+            mics: 4,
+            mic_rms_dbfs: [-40.0; aim_dsp::MAX_MICS],
+            mic_dc_dbfs: [-90.0; aim_dsp::MAX_MICS],
         })),
     }
 }
