@@ -73,6 +73,20 @@ pub struct ArrayRecording {
 }
 
 impl ArrayRecording {
+    /// The recording of `array` of `scenario` before any sound: its description, no channels.
+    pub fn empty_for(scenario: &Scenario, array: &array::ArrayConfig) -> Self {
+        ArrayRecording {
+            id: array.id,
+            sample_rate_hz: scenario.sample_rate_hz,
+            geometry: array.geometry.clone(),
+            positions: array.positions.clone(),
+            position_m: array.position_m.into(),
+            yaw_rad: array.yaw_rad,
+            clock: array.clock,
+            channels: Vec::new(),
+        }
+    }
+
     /// Interleaved TDM words as the firmware's DMA delivers them: frames of `tdm_slots` 32-bit
     /// words, microphone i in slot i (unused slots zero), 24-bit samples left-justified
     /// (`sample << 8`), `full_scale_pa` mapping to digital full scale, clipped.
@@ -507,20 +521,7 @@ pub fn simulate_to(
     }
     progress.finish_and_clear();
 
-    let arrays = scenario
-        .arrays
-        .iter()
-        .map(|a| ArrayRecording {
-            id: a.id,
-            sample_rate_hz: scenario.sample_rate_hz,
-            geometry: a.geometry.clone(),
-            positions: a.positions.clone(),
-            position_m: a.position_m.into(),
-            yaw_rad: a.yaw_rad,
-            clock: a.clock,
-            channels: Vec::new(),
-        })
-        .collect();
+    let arrays = scenario.arrays.iter().map(|a| ArrayRecording::empty_for(scenario, a)).collect();
     let mut truth = make_truth(scenario, &log);
     truth.airframe = Some(airframe.clone());
     let site = make_site(scenario, c);
@@ -565,6 +566,12 @@ fn longest_path_m(s: &Scenario) -> f64 {
         lo = lo.inf(p);
         hi = hi.sup(p);
     }
+    path_bound_in_box(s, lo, hi)
+}
+
+/// The longest path bound for sound within the box `lo`..`hi` (widened to the room): its
+/// diagonal times the reflection order, or the diffuse field's distance.
+fn path_bound_in_box(s: &Scenario, mut lo: Vector3<f64>, mut hi: Vector3<f64>) -> f64 {
     if let Some(r) = &s.room {
         lo = lo.inf(&Vector3::zeros());
         hi = hi.sup(&Vector3::from(r.size_m));
@@ -587,14 +594,7 @@ fn longest_path_bound_m(s: &Scenario, log: &FlightLog) -> f64 {
         lo = lo.inf(&(p - Vector3::repeat(reach)));
         hi = hi.sup(&(p + Vector3::repeat(reach)));
     }
-    if let Some(r) = &s.room {
-        lo = lo.inf(&Vector3::zeros());
-        hi = hi.sup(&Vector3::from(r.size_m));
-    }
-    let diag = (hi - lo).norm() + 1.0;
-    let order = s.room.as_ref().map_or(0, |r| r.reflection_order) as f64;
-    let diffuse = if s.diffuse_noise.is_some() { noise::DIFFUSE_DISTANCE_M + diag } else { 0.0 };
-    (diag * (order + 1.0) * 2.0).max(diffuse).max(longest_path_m(s))
+    path_bound_in_box(s, lo, hi).max(longest_path_m(s))
 }
 
 fn make_truth(s: &Scenario, log: &FlightLog) -> Truth {

@@ -11,6 +11,26 @@ use aim_tracker::status::{MicFault, Status, MIC_HEALTH_WINDOW};
 use host_sim::eval::link;
 use host_sim::scenario::Scenario;
 
+/// Each array's frames, as the link carries them, for the scenario `text`.
+fn link_frames(text: &str) -> Vec<Vec<aim_wire::Frame>> {
+    let scenario = Scenario::from_toml(text, "mic-health").unwrap();
+    let (_, links) = link::simulate_links(
+        &scenario,
+        &host_sim::Options { threads: 2 },
+        &indicatif::ProgressBar::hidden(),
+        host_sim::DEFAULT_FULL_SCALE_PA,
+    )
+    .unwrap();
+    links
+        .iter()
+        .map(|bytes| {
+            let (frames, errors) = link::decode_frames(bytes);
+            assert_eq!(errors, 0);
+            frames
+        })
+        .collect()
+}
+
 #[test]
 fn a_dead_microphone_is_flagged_and_a_healthy_array_is_not() {
     let text = r#"
@@ -31,18 +51,8 @@ fn a_dead_microphone_is_flagged_and_a_healthy_array_is_not() {
         [render]
         rotor_sources = "centre"
         "#;
-    let scenario = Scenario::from_toml(text, "mic-health").unwrap();
-    let (_, links) = link::simulate_links(
-        &scenario,
-        &host_sim::Options { threads: 2 },
-        &indicatif::ProgressBar::hidden(),
-        host_sim::DEFAULT_FULL_SCALE_PA,
-    )
-    .unwrap();
     let mut status = Status::new([(1, 6), (2, 6)]);
-    for bytes in &links {
-        let (frames, errors) = link::decode_frames(bytes);
-        assert_eq!(errors, 0);
+    for frames in link_frames(text) {
         for f in &frames {
             status.observe(f, 0.0);
         }
@@ -87,19 +97,9 @@ fn a_stuck_microphone_is_named_from_its_level() {
         [render]
         rotor_sources = "centre"
         "#;
-    let scenario = Scenario::from_toml(text, "mic-stuck").unwrap();
-    let (_, links) = link::simulate_links(
-        &scenario,
-        &host_sim::Options { threads: 2 },
-        &indicatif::ProgressBar::hidden(),
-        host_sim::DEFAULT_FULL_SCALE_PA,
-    )
-    .unwrap();
     let mut status = Status::new([(1, 6)]);
-    let (frames, errors) = link::decode_frames(&links[0]);
-    assert_eq!(errors, 0);
     let mut healths = 0;
-    for f in &frames {
+    for f in &link_frames(text)[0] {
         if let aim_wire::Body::Health(h) = &f.body {
             healths += 1;
             assert_eq!(h.mic_levels.count, 6);

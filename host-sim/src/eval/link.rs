@@ -133,16 +133,7 @@ pub fn simulate_links(
 ) -> anyhow::Result<(crate::Simulation, Vec<Vec<u8>>)> {
     let mut links = Vec::new();
     for a in &scenario.arrays {
-        let rec = ArrayRecording {
-            id: a.id,
-            sample_rate_hz: scenario.sample_rate_hz,
-            geometry: a.geometry.clone(),
-            positions: a.positions.clone(),
-            position_m: a.position_m.into(),
-            yaw_rad: a.yaw_rad,
-            clock: a.clock,
-            channels: Vec::new(),
-        };
+        let rec = ArrayRecording::empty_for(scenario, a);
         links.push(LinkStream::new(&rec, full_scale_pa)?);
     }
     let mut sink = LinkSink(links);
