@@ -34,7 +34,7 @@ use std::collections::HashMap;
 use aim_wire::{Body, Frame, Hello};
 
 use crate::observation::{Bearing, BpfPeak, Input, Spectrum};
-use crate::site::Site;
+use crate::site::{ArrayPose, Site};
 
 /// Sample rate assumed before any `Hello` when the site file gives none, Hz.
 pub const DEFAULT_SAMPLE_RATE_HZ: u32 = 48_000;
@@ -162,6 +162,20 @@ struct Timeline {
     newest_end: u64,
 }
 
+impl Timeline {
+    /// Host time of the newest audio accepted, s (`fs`: the array's rate, Hz).
+    fn newest_s(&self, pose: &ArrayPose, fs: f64) -> f64 {
+        pose.sample_time(self.newest_end as f64, fs) + self.shift_s
+    }
+
+    /// The next epoch (a reboot), whose first frame starts at sample index `first`: placed
+    /// `gap_s` after this epoch's newest audio.
+    fn next_epoch(&self, pose: &ArrayPose, fs: f64, first: u64, gap_s: f64) -> Timeline {
+        let shift_s = self.newest_s(pose, fs) + gap_s - pose.sample_time(first as f64, fs);
+        Timeline { shift_s, newest_end: first }
+    }
+}
+
 /// Everything the intake keeps of one array.
 #[derive(Clone, Debug, Default)]
 struct ArrayState {
@@ -242,17 +256,14 @@ impl Intake {
                 state.boot_count = Some(h.boot_count);
                 if let (true, Some(old)) = (rebooted, state.timeline) {
                     let fs = f64::from(state.rate_hz.unwrap_or(DEFAULT_SAMPLE_RATE_HZ));
-                    let first = frame.header.sample_index;
-                    let last = pose.sample_time(old.newest_end as f64, fs) + old.shift_s;
                     // The old boot's inputs all describe audio up to its last: release them.
-                    self.stats.inputs += release(state, id, last, sink);
+                    self.stats.inputs += release(state, id, old.newest_s(pose, fs), sink);
                     self.stats.out_of_window += state.pending.len() as u64;
                     state.pending.clear();
                     self.stats.new_epochs += 1;
                     self.stats.reboots_announced += 1;
-                    let shift_s =
-                        last + self.config.epoch_gap_s - pose.sample_time(first as f64, fs);
-                    state.timeline = Some(Timeline { shift_s, newest_end: first });
+                    let first = frame.header.sample_index;
+                    state.timeline = Some(old.next_epoch(pose, fs, first, self.config.epoch_gap_s));
                 }
                 0
             }
@@ -298,9 +309,7 @@ impl Intake {
                     }
                     Some(old) => {
                         self.stats.new_epochs += 1;
-                        let last = pose.sample_time(old.newest_end as f64, fs) + old.shift_s;
-                        let shift_s = last + c.epoch_gap_s - pose.sample_time(first as f64, fs);
-                        Timeline { shift_s, newest_end: first }
+                        old.next_epoch(pose, fs, first, c.epoch_gap_s)
                     }
                 });
                 accepted = chain;
@@ -327,7 +336,7 @@ impl Intake {
                 }
             }
         }
-        let newest = pose.sample_time(timeline.newest_end as f64, fs) + timeline.shift_s;
+        let newest = timeline.newest_s(pose, fs);
         self.now = self.now.max(newest);
         let until = newest - c.reorder_s;
         self.stats.inputs += release(state, id, until, sink);

@@ -306,12 +306,11 @@ fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (S
     let mut md = format!(
         "{} seeds; each cell: mean ± sd over seeds of the per-run figure. Errors are at the \
          instant a fix describes; *live* is against where the drone is when the fix becomes \
-         available; *fixes ≤ {} m* is the share of due output instants with a fix that close.\n\n\
-         | family | filter | seeds | mean error | median error | p90 error | live mean error | availability | fixes ≤ {} m | motion class |\n\
+         available; *fixes ≤ {good} m* is the share of due output instants with a fix that close.\n\n\
+         | family | filter | seeds | mean error | median error | p90 error | live mean error | availability | fixes ≤ {good} m | motion class |\n\
          |---|---|---|---|---|---|---|---|---|---|\n",
         seeds_label,
-        host_sim::eval::metrics::GOOD_FIX_M,
-        host_sim::eval::metrics::GOOD_FIX_M,
+        good = host_sim::eval::metrics::GOOD_FIX_M,
     );
     for (family, filter, n, st) in &rows {
         let _ = write!(csv, "{family},{},{n}", filter_name(*filter));

@@ -84,7 +84,12 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                 "harmonicity": round(f64::from(q.harmonicity) / 255.0, 4),
             })).collect::<Vec<_>>(),
         }),
-        Body::Health(p) => json!({
+        Body::Health(p) => {
+            let mic_levels: (Vec<f64>, Vec<f64>) = (0..usize::from(p.mic_levels.count))
+                .filter_map(|i| p.mic_levels.level_dbfs(i))
+                .map(|(rms, dc)| (f64::from(rms), f64::from(dc)))
+                .unzip();
+            json!({
             "blocks": p.blocks,
             "clipped_samples": p.clipped_samples,
             "peak_dbfs": f64::from(p.peak_ddbfs) / 10.0,
@@ -103,13 +108,10 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
             "frames_unencodable": p.frames_unencodable,
             "chunks_captured": p.chunks_captured,
             // Per microphone in slot order, dBFS (empty when the board sends none).
-            "mic_rms_dbfs": (0..usize::from(p.mic_levels.count))
-                .filter_map(|i| p.mic_levels.level_dbfs(i).map(|l| f64::from(l.0)))
-                .collect::<Vec<_>>(),
-            "mic_dc_dbfs": (0..usize::from(p.mic_levels.count))
-                .filter_map(|i| p.mic_levels.level_dbfs(i).map(|l| f64::from(l.1)))
-                .collect::<Vec<_>>(),
-        }),
+            "mic_rms_dbfs": mic_levels.0,
+            "mic_dc_dbfs": mic_levels.1,
+            })
+        }
         // A kind added to aim-wire but not yet here: header only.
         #[allow(unreachable_patterns)]
         _ => json!({}),
