@@ -7,6 +7,7 @@
 //! (panic-probe → HardFault: probe-rs reports it and exits non-zero).
 #![no_std]
 
+pub mod pin_clock;
 pub mod signal;
 
 /// Reports success and stops the core on a breakpoint, which ends the `probe-rs run` session

@@ -16,9 +16,8 @@
 #![no_main]
 
 use aim_firmware::capture::{self, ChunkReceiver, SaiCapture};
-use aim_firmware::clocks::sysclk_hz;
 use aim_firmware::stats::CycleCounter;
-use aim_hil_tests::{board, check_range, pass};
+use aim_hil_tests::{board, check_range, pass, pin_clock};
 use cortex_m_rt::entry;
 use embassy_executor::{Executor, InterruptExecutor};
 use embassy_stm32::interrupt;
@@ -29,8 +28,6 @@ use {defmt_rtt as _, panic_probe as _};
 
 /// MCLK, Hz.
 const MCLK_HZ: u64 = 12_288_000;
-/// IDR samples per measurement.
-const SAMPLES: u32 = 100_000;
 
 static EXECUTOR_CAPTURE: InterruptExecutor = InterruptExecutor::new();
 static EXECUTOR_THREAD: StaticCell<Executor> = StaticCell::new();
@@ -50,50 +47,24 @@ async fn consume(mut chunks: ChunkReceiver) {
     }
 }
 
-/// Samples PE2 `SAMPLES` times; returns the level changes and the cycles taken.
-fn sample_pe2(cycles: &CycleCounter) -> (u32, u32) {
-    let idr = embassy_stm32::pac::GPIOE.idr();
-    let mut last = idr.read().idr(2);
-    let mut changes = 0;
-    let start = cycles.now();
-    for _ in 0..SAMPLES {
-        let level = idr.read().idr(2);
-        changes += u32::from(level != last);
-        last = level;
-    }
-    (changes, cycles.since(start))
-}
-
 #[embassy_executor::task]
 async fn measure(cycles: &'static CycleCounter) {
     Timer::after_millis(100).await; // the capture task has started the SAI
     check_range("MCKEN set", u64::from(capture::mclk_output_enabled()), 1, 1);
 
-    let (changes, spent) = cortex_m::interrupt::free(|_| sample_pe2(cycles));
-    let interval_ps =
-        u64::from(spent) * 1_000_000_000_000 / u64::from(sysclk_hz()) / u64::from(SAMPLES);
-    defmt::info!(
-        "MCKEN on: {=u32} level changes in {=u32} samples, {=u64} ps per sample",
-        changes,
-        SAMPLES,
-        interval_ps
-    );
-    check_range(
-        "PE2 level changes, MCKEN on",
-        u64::from(changes),
-        u64::from(SAMPLES / 10),
-        u64::from(SAMPLES),
-    );
     // One MCLK half period is 40.7 ns: sampling faster counts every edge.
-    if interval_ps < 40_000 {
-        let hz = u64::from(changes) * u64::from(sysclk_hz()) / 2 / u64::from(spent.max(1));
-        check_range("MCLK frequency, Hz", hz, MCLK_HZ * 98 / 100, MCLK_HZ * 102 / 100);
-    } else {
-        defmt::warn!("sampling too slow to count MCLK edges: frequency not checked");
-    }
+    pin_clock::check(
+        cycles,
+        "MCKEN on, PE2",
+        2,
+        "PE2 level changes, MCKEN on",
+        "MCLK frequency, Hz",
+        MCLK_HZ,
+        40_000,
+    );
 
     embassy_stm32::pac::SAI1.ch(0).cr1().modify(|w| w.0 &= !capture::MCKEN);
-    let (changes_off, _) = cortex_m::interrupt::free(|_| sample_pe2(cycles));
+    let (changes_off, _) = pin_clock::sample(cycles, 2);
     capture::enable_mclk_output();
     defmt::info!("MCKEN off: {=u32} level changes", changes_off);
     check_range("PE2 level changes, MCKEN off", u64::from(changes_off), 0, 0);

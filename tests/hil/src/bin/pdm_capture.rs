@@ -30,10 +30,9 @@
 
 use aim_firmware::capture::{self, ChunkReceiver};
 use aim_firmware::capture_pdm::{self, PdmCapture, PDM_PAIRS, PDM_PINS_GPIOE, PDM_PIN_AF};
-use aim_firmware::clocks::sysclk_hz;
 use aim_firmware::config::{CHUNK_FRAMES, MIC_COUNT, SAMPLE_RATE_HZ, TDM_SLOTS};
 use aim_firmware::stats::{read, CycleCounter, COUNTERS};
-use aim_hil_tests::{board, check_range, pass};
+use aim_hil_tests::{board, check_range, pass, pin_clock};
 use cortex_m_rt::entry;
 use embassy_executor::{Executor, InterruptExecutor};
 use embassy_stm32::interrupt;
@@ -52,8 +51,6 @@ const MIN_SPAN: i32 = 16;
 const MAX_MEAN: i64 = 1 << 21;
 /// The PDM clock on CK1 and CK2, Hz.
 const PDM_CLOCK_HZ: u64 = capture_pdm::PDM_CLOCK_HZ as u64;
-/// IDR samples per clock measurement.
-const SAMPLES: u32 = 100_000;
 
 static EXECUTOR_CAPTURE: InterruptExecutor = InterruptExecutor::new();
 static EXECUTOR_THREAD: StaticCell<Executor> = StaticCell::new();
@@ -96,46 +93,19 @@ fn check_configuration() {
     const _: () = assert!(PDM_PIN_AF == 2);
 }
 
-/// Samples GPIOE pin `pin` `SAMPLES` times; returns the level changes and the cycles taken.
-fn sample_pin(cycles: &CycleCounter, pin: usize) -> (u32, u32) {
-    let idr = embassy_stm32::pac::GPIOE.idr();
-    let mut last = idr.read().idr(pin);
-    let mut changes = 0;
-    let start = cycles.now();
-    for _ in 0..SAMPLES {
-        let level = idr.read().idr(pin);
-        changes += u32::from(level != last);
-        last = level;
-    }
-    (changes, cycles.since(start))
-}
-
 /// Checks the PDM clock on CK1 (PE2) and CK2 (PE5) toggles, at 3.072 MHz where measurable.
 fn check_clocks(cycles: &CycleCounter) {
     for (name, pin) in [("CK1 (PE2)", 2), ("CK2 (PE5)", 5)] {
-        let (changes, spent) = cortex_m::interrupt::free(|_| sample_pin(cycles, pin));
-        let interval_ps =
-            u64::from(spent) * 1_000_000_000_000 / u64::from(sysclk_hz()) / u64::from(SAMPLES);
-        defmt::info!(
-            "{=str}: {=u32} level changes in {=u32} samples, {=u64} ps per sample",
-            name,
-            changes,
-            SAMPLES,
-            interval_ps
-        );
-        check_range(
-            "PDM clock level changes",
-            u64::from(changes),
-            u64::from(SAMPLES / 10),
-            u64::from(SAMPLES),
-        );
         // Half a period of 3.072 MHz is 162.8 ns: sampling faster counts every edge.
-        if interval_ps < 162_000 {
-            let hz = u64::from(changes) * u64::from(sysclk_hz()) / 2 / u64::from(spent.max(1));
-            check_range("PDM clock, Hz", hz, PDM_CLOCK_HZ * 98 / 100, PDM_CLOCK_HZ * 102 / 100);
-        } else {
-            defmt::warn!("sampling too slow to count PDM clock edges: frequency not checked");
-        }
+        pin_clock::check(
+            cycles,
+            name,
+            pin,
+            "PDM clock level changes",
+            "PDM clock, Hz",
+            PDM_CLOCK_HZ,
+            162_000,
+        );
     }
 }
 
