@@ -119,6 +119,12 @@ pub struct Fix {
     pub velocity: [f64; 3],
     /// Standard deviation of each position coordinate, m.
     pub sigma: [f64; 3],
+    /// Covariance of the position, world ENU m² (row-major 3×3; its diagonal is `sigma`²).
+    pub covariance: [[f64; 3]; 3],
+    /// How many times the tracker had restarted its track (after a silence of its array, or a
+    /// reboot's new epoch) before this fix: fixes with different counts belong to different
+    /// tracks (MAVLink's `reset_counter`).
+    pub resets: u32,
     /// Motion class.
     pub motion: MotionClass,
     /// Line-of-sight decision.
@@ -206,6 +212,8 @@ pub struct Tracker {
     hover_run_s: f64,
     latest_input_t: f64,
     diagnostics: VecDeque<Diagnostics>,
+    /// Restarts of the track so far ([`Fix::resets`]).
+    resets: u32,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -271,6 +279,7 @@ impl Tracker {
             hover_run_s: 0.0,
             latest_input_t: f64::NEG_INFINITY,
             diagnostics: VecDeque::new(),
+            resets: 0,
         })
     }
 
@@ -367,6 +376,7 @@ impl Tracker {
         self.spectra.clear();
         self.last_output = None;
         self.hover_run_s = 0.0;
+        self.resets = self.resets.wrapping_add(1);
     }
 
     /// Emits the fixes of every output instant up to and including the newest input.
@@ -627,6 +637,8 @@ impl Tracker {
                 pc[(1, 1)].max(0.0).sqrt(),
                 pc[(2, 2)].max(0.0).sqrt(),
             ],
+            covariance: std::array::from_fn(|i| std::array::from_fn(|j| pc[(i, j)])),
+            resets: self.resets,
             motion,
             los,
         })

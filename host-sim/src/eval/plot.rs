@@ -337,6 +337,8 @@ mod tests {
             position: [0.0; 3],
             velocity: [0.0; 3],
             sigma: [0.0; 3],
+            covariance: [[0.0; 3]; 3],
+            resets: 0,
             motion: aim_tracker::motion::MotionClass::Hover,
             los,
             available: t,

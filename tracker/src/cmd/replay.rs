@@ -10,6 +10,8 @@ use std::path::PathBuf;
 use aim_tracker::filter::FilterKind;
 use aim_tracker::intake::IntakeConfig;
 use aim_tracker::link::{self, FrameSource};
+use aim_tracker::output::mavlink::MavlinkOut;
+use aim_tracker::output::ned::Origin;
 use aim_tracker::profile::Profile;
 use aim_tracker::session::Session;
 use aim_tracker::site::Site;
@@ -34,6 +36,30 @@ pub struct TrackOptions {
     /// Output period, s.
     #[arg(long, default_value_t = 0.1)]
     pub period: f64,
+    #[command(flatten)]
+    pub mavlink: MavlinkArgs,
+}
+
+/// The MAVLink output of `aim track`/`aim replay` (see `aim_tracker::output::mavlink`).
+#[derive(clap::Args)]
+pub struct MavlinkArgs {
+    /// Also send each fix to an autopilot as MAVLink 2 VISION_POSITION_ESTIMATE (with
+    /// HEARTBEAT at 1 Hz), in the local NED frame of the site file's `[origin]`:
+    /// `udpout:HOST:PORT` or `serial:PORT:BAUD`.
+    #[arg(long, value_name = "ADDRESS")]
+    pub mavlink: Option<String>,
+    /// MAVLink system id of the messages (the vehicle's).
+    #[arg(long, default_value_t = aim_tracker::output::mavlink::DEFAULT_SYSTEM_ID)]
+    pub mavlink_system_id: u8,
+}
+
+impl MavlinkArgs {
+    /// The MAVLink output, if `--mavlink` was given (the site file must have `[origin]`).
+    pub fn open(&self, site: &std::path::Path) -> anyhow::Result<Option<MavlinkOut>> {
+        let Some(address) = &self.mavlink else { return Ok(None) };
+        let origin = Origin::load(site).context("--mavlink")?;
+        Ok(Some(MavlinkOut::open(address, origin, self.mavlink_system_id)?))
+    }
 }
 
 impl TrackOptions {
@@ -71,18 +97,23 @@ pub struct Args {
 }
 
 /// Feeds every frame of `source` through the session, printing fixes as JSON lines as soon as
-/// they are available (`live`: flushed one by one), then the statistics line on stderr.
+/// they are available (`live`: flushed one by one) and sending them to `mavlink` if given,
+/// then the statistics line on stderr.
 pub fn track_frames<R: std::io::Read>(
     name: &str,
     source: &mut FrameSource<R>,
     session: &mut Session,
     site: &std::path::Path,
     live: bool,
+    mavlink: Option<&MavlinkOut>,
 ) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     let result = session.track_reader(source, &mut |fix| {
         writeln!(out, "{}", fix.to_json()).context("writing to stdout")?;
+        if let Some(m) = mavlink {
+            m.send(fix);
+        }
         if live {
             out.flush().context("writing to stdout")?;
         }
@@ -96,6 +127,8 @@ pub fn track_frames<R: std::io::Read>(
 /// Runs `aim replay`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut session = args.options.build()?;
+    let mavlink = args.options.mavlink.open(&args.options.site)?;
     let mut source = FrameSource::new(link::open_input(&args.frames)?);
-    track_frames(&args.frames, &mut source, &mut session, &args.options.site, false)
+    let site = &args.options.site;
+    track_frames(&args.frames, &mut source, &mut session, site, false, mavlink.as_ref())
 }

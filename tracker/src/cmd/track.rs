@@ -43,14 +43,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let mut session = args.options.build()?;
+    let mavlink = args.options.mavlink.open(&args.options.site)?;
     if every > 0.0 {
         spawn_status_line(&session, every);
     }
     let mut source = FrameSource::new(args.link.open()?);
     // Scripts and tests wait for this line before they send: the port is configured now.
     eprintln!("tracking {} at {} baud", args.link.serial, args.link.baud);
+    let site = &args.options.site;
     let result =
-        track_frames(&args.link.serial, &mut source, &mut session, &args.options.site, true);
+        track_frames(&args.link.serial, &mut source, &mut session, site, true, mavlink.as_ref());
     result?;
     if source.get_mut().interrupted() {
         return Err(Interrupted.into());
