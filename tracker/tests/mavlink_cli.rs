@@ -10,7 +10,7 @@
 //! `.ci/run` installs it and its absence fails.
 mod common;
 
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader, Read, Write as _};
 use std::process::{Command, Stdio};
 
 use aim_tracker::filter::FilterKind;
@@ -48,7 +48,10 @@ fn pymavlink_present() -> bool {
         if std::env::var("CI").is_ok_and(|v| v == "true") {
             panic!("pymavlink is missing in CI: .ci/run installs it (pip install pymavlink)");
         }
-        eprintln!(
+        // Straight to the process's stderr: the test harness would swallow `eprintln!` of a
+        // passing test.
+        let _ = writeln!(
+            std::io::stderr(),
             "\n*** SKIPPED mavlink_cli: pymavlink is not installed (python3 -m pip install \
              pymavlink); CI installs it and runs this test ***\n"
         );
@@ -145,6 +148,9 @@ fn fixes_arrive_as_vision_position_estimates_in_ned() {
     let heartbeats: Vec<&Value> =
         messages.iter().filter(|m| m["mavpackettype"] == "HEARTBEAT").collect();
     assert_eq!(vision.len(), fixes.len(), "one message per fix, each once");
+    let stderr = String::from_utf8_lossy(&aim.stderr);
+    let counts = format!("{{\"kind\":\"mavlink\",\"sent\":{},\"failed\":0}}", fixes.len());
+    assert!(stderr.lines().any(|l| l == counts), "{stderr}");
     assert!(!heartbeats.is_empty(), "no HEARTBEAT");
     for h in &heartbeats {
         assert_eq!(h["type"], 18, "MAV_TYPE_ONBOARD_CONTROLLER: {h}");

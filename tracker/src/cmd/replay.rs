@@ -98,7 +98,7 @@ pub struct Args {
 
 /// Feeds every frame of `source` through the session, printing fixes as JSON lines as soon as
 /// they are available (`live`: flushed one by one) and sending them to `mavlink` if given,
-/// then the statistics line on stderr.
+/// then the statistics line on stderr (and `{"kind":"mavlink","sent":..,"failed":..}`).
 pub fn track_frames<R: std::io::Read>(
     name: &str,
     source: &mut FrameSource<R>,
@@ -121,6 +121,10 @@ pub fn track_frames<R: std::io::Read>(
     });
     out.flush().context("writing to stdout")?;
     eprintln!("{}", session.stats_json(source.stats()));
+    if let Some(m) = mavlink {
+        let (sent, failed) = m.counts();
+        eprintln!("{{\"kind\":\"mavlink\",\"sent\":{sent},\"failed\":{failed}}}");
+    }
     result.with_context(|| format!("{name} (site {})", site.display()))
 }
 
