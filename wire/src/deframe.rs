@@ -154,10 +154,10 @@ fn open_envelope(raw: &[u8]) -> Result<(u8, Header, &[u8]), DecodeError> {
 fn decode_body(kind: Kind, payload: &[u8]) -> Result<Body, DecodeError> {
     let err = |_| DecodeError::Payload(Some(kind));
     Ok(match kind {
-        Kind::Hello => Body::Hello(postcard::take_from_bytes(payload).map_err(err)?.0),
+        Kind::Hello => Body::Hello(crate::Hello::from_payload(payload).map_err(err)?),
         Kind::Doa => Body::Doa(postcard::take_from_bytes(payload).map_err(err)?.0),
         Kind::Peaks => Body::Peaks(postcard::take_from_bytes(payload).map_err(err)?.0),
-        Kind::Health => Body::Health(postcard::take_from_bytes(payload).map_err(err)?.0),
+        Kind::Health => Body::Health(crate::Health::from_payload(payload).map_err(err)?),
     })
 }
 
