@@ -533,7 +533,7 @@ mod tests {
         let (s, m) = (Vector3::new(2.1, 1.7, 1.1), Vector3::new(4.9, 3.2, 1.6));
         let c = 343.0;
         let bin = 0.02;
-        let mut hist = vec![0.0; 12];
+        let mut hist = [0.0; 12];
         for im in r.images() {
             if im.order <= 2 {
                 continue;
