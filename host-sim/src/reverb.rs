@@ -124,6 +124,12 @@ pub fn eyring_absorption(size_m: [f64; 3], rt60_s: f64, c_mps: f64) -> f64 {
     1.0 - (-k * v / (s * rt60_s)).exp()
 }
 
+/// How long after emission a room's late tail reaches at 343 m/s without air absorption (the
+/// longest it gets), s. For memory estimates; the renderer uses its own tail's length.
+pub fn tail_reach_estimate_s(room: &Room) -> f64 {
+    envelopes(room, 343.0, 0.0, 1000.0).end as f64 / 1000.0
+}
+
 /// Absorption coefficient (all walls alike) whose image model decays with T30 = `rt60_s` in a
 /// room of `size_m` (without air absorption). With all walls alike the energy is a function of
 /// `t · (−ln(1 − α))` alone, so one evaluation of T30 at Eyring's α scales to the answer. The

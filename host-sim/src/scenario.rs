@@ -1063,7 +1063,7 @@ impl Scenario {
         // with the renderer's margin.
         let pre_roll = self.room.as_ref().map_or(0.5, |r| {
             let diagonal = r.size_m.iter().map(|l| l * l).sum::<f64>().sqrt();
-            let tail = if r.late_tail { 1.3 * crate::reverb::eyring_rt60_s(r, 343.0) } else { 0.0 };
+            let tail = if r.late_tail { crate::reverb::tail_reach_estimate_s(r) } else { 0.0 };
             (diagonal * (2.0 * f64::from(r.reflection_order) + 2.0) / 343.0).max(tail) + 0.05
         });
         let block_s = crate::OUTPUT_BLOCK as f64 / fs;
@@ -1085,7 +1085,14 @@ impl Scenario {
         // The flight log (~400 B per control step) and the truth (~300 B per row).
         let span = self.duration_s + spread + pre_roll;
         let log = span * self.render.control_rate_hz * 400.0 + span * self.truth_rate_hz * 300.0;
-        (samples * 4.0 + log) as u64
+        // The late tail's spectra: per microphone an FFT of the output block plus the tail
+        // (complex f32), and the convolution's buffer per worker (counted once per microphone).
+        let tail = self.room.as_ref().filter(|r| r.late_tail).map_or(0.0, |r| {
+            let len = crate::reverb::tail_reach_estimate_s(r) * fs;
+            let n_fft = ((crate::OUTPUT_BLOCK as f64 + len) as usize).next_power_of_two();
+            (n_fft * 8 * 2 * mics) as f64
+        });
+        (samples * 4.0 + log + tail) as u64
     }
 
     /// Memory of every microphone's whole recording (f32), bytes.
