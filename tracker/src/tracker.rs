@@ -22,6 +22,9 @@ use crate::wake::{HoverPattern, WakeConfig, WakeSpeed, WakeSplit};
 /// has not settled, m/s.
 const UNSETTLED_SPEED_SIGMA_MPS: f64 = 1.0;
 
+/// One value and its standard deviation per spectrum frame (a speed in m/s, or a split).
+type FrameCues = Vec<(f64, f64)>;
+
 /// One BPF frame as the pipeline keeps it.
 #[derive(Clone, Debug, PartialEq)]
 struct BpfFrame {
@@ -448,7 +451,7 @@ impl Tracker {
         t: f64,
         motion: MotionClass,
         speed: &mut AcousticSpeed,
-    ) -> (Vec<(f64, f64)>, bool, Option<Vec<(f64, f64)>>) {
+    ) -> (FrameCues, bool, Option<FrameCues>) {
         let since = std::mem::replace(&mut self.wake_last_t, t);
         let leg = motion == MotionClass::Horizontal && self.calibration.is_calibrated();
         if !leg {
