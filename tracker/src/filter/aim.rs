@@ -97,7 +97,7 @@ pub struct AimConfig {
     /// keeps the integrator accelerating (traced on square10-los seed 105: 6 m/s integrated
     /// on a 1.5 m/s leg, the mixture followed it to 4× the range), and as a fresh
     /// measurement at every output it outweighed the bearings; off, the tuning seeds' mean
-    /// over 15 families went from 3.61 to 3.45 m (BENCHMARKS.md, issue 12 session 6).
+    /// over 15 families went from 3.67 to 3.36 m (BENCHMARKS.md, issue 12 session 6).
     pub integrated_speed: bool,
 }
 
