@@ -455,6 +455,7 @@ mod tests {
                 },
                 room: None,
                 cruise_speeds: None,
+                wake_splits: None,
                 doppler: Vec::new(),
                 speed_of_sound_mps: 343.2,
             };
