@@ -71,13 +71,15 @@ pub struct Args {
 }
 
 /// Feeds every frame of `source` through the session, printing fixes as JSON lines as soon as
-/// they are available (`live`: flushed one by one), then the statistics line on stderr.
+/// they are available (`live`: flushed one by one), then the statistics line on stderr. Every
+/// fix also goes to `also` after it is printed (the live map, the bus).
 pub fn track_frames<R: std::io::Read>(
     name: &str,
     source: &mut FrameSource<R>,
     session: &mut Session,
     site: &std::path::Path,
     live: bool,
+    also: &mut dyn FnMut(&aim_tracker::tracker::Fix) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
@@ -86,7 +88,7 @@ pub fn track_frames<R: std::io::Read>(
         if live {
             out.flush().context("writing to stdout")?;
         }
-        Ok(())
+        also(fix)
     });
     out.flush().context("writing to stdout")?;
     eprintln!("{}", session.stats_json(source.stats()));
@@ -97,5 +99,12 @@ pub fn track_frames<R: std::io::Read>(
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut session = args.options.build()?;
     let mut source = FrameSource::new(link::open_input(&args.frames)?);
-    track_frames(&args.frames, &mut source, &mut session, &args.options.site, false)
+    track_frames(
+        &args.frames,
+        &mut source,
+        &mut session,
+        &args.options.site,
+        false,
+        &mut |_| Ok(()),
+    )
 }

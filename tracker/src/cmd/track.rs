@@ -27,6 +27,10 @@ pub struct Args {
     /// Print the status line on stderr every this many seconds (0: never).
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
     status_every: f64,
+    /// With `--zenoh`: this tracker's name on the bus, its fixes go to `aim/track/<name>/fix`
+    /// (default: the site file's name without `.toml`).
+    #[arg(long)]
+    name: Option<String>,
 }
 
 /// Runs `aim track`.
@@ -46,16 +50,56 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if every > 0.0 {
         spawn_status_line(&session, every);
     }
+    if args.link.zenoh {
+        return track_zenoh(&args, &mut session);
+    }
+    let port = args.link.port()?;
     let mut source = FrameSource::new(args.link.open()?);
     // Scripts and tests wait for this line before they send: the port is configured now.
-    eprintln!("tracking {} at {} baud", args.link.serial, args.link.baud);
+    eprintln!("tracking {} at {} baud", port, args.link.baud);
     let result =
-        track_frames(&args.link.serial, &mut source, &mut session, &args.options.site, true);
+        track_frames(port, &mut source, &mut session, &args.options.site, true, &mut |_| Ok(()));
     result?;
     if source.get_mut().interrupted() {
         return Err(Interrupted.into());
     }
     Ok(())
+}
+
+/// `aim track --zenoh`: the frames of every array on the bus through the same intake; each fix
+/// printed and published on `aim/track/<name>/fix`. Ends on Ctrl-C / SIGTERM (status 130)
+/// with the last fixes and the statistics line.
+#[cfg(feature = "zenoh")]
+fn track_zenoh(args: &Args, session: &mut aim_tracker::session::Session) -> anyhow::Result<()> {
+    use aim_tracker::link::bus::{fix_key, FrameFeed, LinePublisher, FRAMES_ALL};
+    use zenoh::Wait as _;
+    let name = match &args.name {
+        Some(name) => name.clone(),
+        None => args.options.site.file_stem().unwrap_or_default().to_string_lossy().into_owned(),
+    };
+    let bus = args.link.bus.open()?;
+    let fixes = LinePublisher::new(&bus, fix_key(&name)?)?;
+    let feed = FrameFeed::subscribe(&bus)?.stop_on(aim_tracker::link::serial::interrupt_flag()?);
+    let mut source = FrameSource::new(feed);
+    // Scripts and tests wait for this line before they publish: the subscription is declared.
+    eprintln!("tracking {FRAMES_ALL} on the Zenoh bus, fixes on {}", fixes.key());
+    let result =
+        track_frames(FRAMES_ALL, &mut source, session, &args.options.site, true, &mut |fix| {
+            fixes.put(&fix.to_json())
+        });
+    // Closing sends the last fixes still queued before the process ends.
+    let _ = bus.close().wait();
+    result?;
+    if source.get_mut().interrupted() {
+        return Err(Interrupted.into());
+    }
+    Ok(())
+}
+
+/// `aim track --zenoh` in an `aim` built without the bus.
+#[cfg(not(feature = "zenoh"))]
+fn track_zenoh(_args: &Args, _session: &mut aim_tracker::session::Session) -> anyhow::Result<()> {
+    Err(super::bus::unavailable())
 }
 
 /// Allowed `--status-every`, s (0: off; up to a day).
