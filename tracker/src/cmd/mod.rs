@@ -4,6 +4,7 @@ pub mod frames;
 pub mod gateway;
 pub mod record;
 pub mod replay;
+pub mod serve;
 pub mod track;
 
 use aim_tracker::link::{self, serial::Link};

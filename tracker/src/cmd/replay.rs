@@ -11,6 +11,7 @@ use aim_tracker::filter::FilterKind;
 use aim_tracker::intake::IntakeConfig;
 use aim_tracker::link::{self, FrameSource};
 use aim_tracker::profile::Profile;
+use aim_tracker::serve::tap::Tap;
 use aim_tracker::session::Session;
 use aim_tracker::site::Site;
 use aim_tracker::tracker::{Tracker, TrackerConfig};
@@ -34,6 +35,8 @@ pub struct TrackOptions {
     /// Output period, s.
     #[arg(long, default_value_t = 0.1)]
     pub period: f64,
+    #[command(flatten)]
+    pub serve: super::serve::ServeArgs,
 }
 
 impl TrackOptions {
@@ -68,6 +71,10 @@ pub struct Args {
     frames: String,
     #[command(flatten)]
     options: TrackOptions,
+    /// Replay pace: `free` (as fast as possible), `real` (the link's pace) or a speed-up such
+    /// as `4`; with `--serve` the map then updates as it would live.
+    #[arg(long, default_value = "free", value_name = "real|N|free")]
+    pace: aim_tracker::serve::tap::Pace,
 }
 
 /// Feeds every frame of `source` through the session, printing fixes as JSON lines as soon as
@@ -98,13 +105,22 @@ pub fn track_frames<R: std::io::Read>(
 /// Runs `aim replay`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut session = args.options.build()?;
-    let mut source = FrameSource::new(link::open_input(&args.frames)?);
-    track_frames(
+    let map = args.options.serve.start(&args.options.site)?;
+    let input = link::open_input(&args.frames)?;
+    let mut source = FrameSource::new(Tap::new(input, map.clone(), args.pace));
+    let result = track_frames(
         &args.frames,
         &mut source,
         &mut session,
         &args.options.site,
         false,
-        &mut |_| Ok(()),
-    )
+        &mut |fix| super::serve::show(&map, fix),
+    );
+    if let Some(map) = map {
+        map.end();
+        if result.is_ok() {
+            super::serve::serve_until_interrupted(&map)?;
+        }
+    }
+    result
 }

@@ -15,6 +15,9 @@
 use aim_tracker::exit::Interrupted;
 use aim_tracker::link::FrameSource;
 
+use aim_tracker::serve::tap::{Pace, Tap};
+use aim_tracker::serve::LiveMap;
+
 use super::replay::{track_frames, TrackOptions};
 
 /// Arguments of `aim track`.
@@ -50,17 +53,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if every > 0.0 {
         spawn_status_line(&session, every);
     }
+    let map = args.options.serve.start(&args.options.site)?;
     if args.link.zenoh {
-        return track_zenoh(&args, &mut session);
+        return track_zenoh(&args, &mut session, map);
     }
     let port = args.link.port()?;
-    let mut source = FrameSource::new(args.link.open()?);
+    let mut source = FrameSource::new(Tap::new(args.link.open()?, map.clone(), Pace::Free));
     // Scripts and tests wait for this line before they send: the port is configured now.
     eprintln!("tracking {} at {} baud", port, args.link.baud);
     let result =
-        track_frames(port, &mut source, &mut session, &args.options.site, true, &mut |_| Ok(()));
+        track_frames(port, &mut source, &mut session, &args.options.site, true, &mut |fix| {
+            super::serve::show(&map, fix)
+        });
+    if let Some(map) = &map {
+        map.end();
+    }
     result?;
-    if source.get_mut().interrupted() {
+    if source.get_mut().get_mut().interrupted() {
         return Err(Interrupted.into());
     }
     Ok(())
@@ -70,7 +79,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// printed and published on `aim/track/<name>/fix`. Ends on Ctrl-C / SIGTERM (status 130)
 /// with the last fixes and the statistics line.
 #[cfg(feature = "zenoh")]
-fn track_zenoh(args: &Args, session: &mut aim_tracker::session::Session) -> anyhow::Result<()> {
+fn track_zenoh(
+    args: &Args,
+    session: &mut aim_tracker::session::Session,
+    map: Option<LiveMap>,
+) -> anyhow::Result<()> {
     use aim_tracker::link::bus::{fix_key, FrameFeed, LinePublisher, FRAMES_ALL};
     use zenoh::Wait as _;
     let name = match &args.name {
@@ -80,17 +93,21 @@ fn track_zenoh(args: &Args, session: &mut aim_tracker::session::Session) -> anyh
     let bus = args.link.bus.open()?;
     let fixes = LinePublisher::new(&bus, fix_key(&name)?)?;
     let feed = FrameFeed::subscribe(&bus)?.stop_on(aim_tracker::link::serial::interrupt_flag()?);
-    let mut source = FrameSource::new(feed);
+    let mut source = FrameSource::new(Tap::new(feed, map.clone(), Pace::Free));
     // Scripts and tests wait for this line before they publish: the subscription is declared.
     eprintln!("tracking {FRAMES_ALL} on the Zenoh bus, fixes on {}", fixes.key());
     let result =
         track_frames(FRAMES_ALL, &mut source, session, &args.options.site, true, &mut |fix| {
-            fixes.put(&fix.to_json())
+            fixes.put(&fix.to_json())?;
+            super::serve::show(&map, fix)
         });
+    if let Some(map) = &map {
+        map.end();
+    }
     // Closing sends the last fixes still queued before the process ends.
     let _ = bus.close().wait();
     result?;
-    if source.get_mut().interrupted() {
+    if source.get_mut().get_mut().interrupted() {
         return Err(Interrupted.into());
     }
     Ok(())
@@ -98,7 +115,11 @@ fn track_zenoh(args: &Args, session: &mut aim_tracker::session::Session) -> anyh
 
 /// `aim track --zenoh` in an `aim` built without the bus.
 #[cfg(not(feature = "zenoh"))]
-fn track_zenoh(_args: &Args, _session: &mut aim_tracker::session::Session) -> anyhow::Result<()> {
+fn track_zenoh(
+    _args: &Args,
+    _session: &mut aim_tracker::session::Session,
+    _map: Option<LiveMap>,
+) -> anyhow::Result<()> {
     Err(super::bus::unavailable())
 }
 
