@@ -11,6 +11,7 @@
 //! - [`link`], [`intake`], [`session`]: link bytes → frames → inputs in time order on one time
 //!   base → the tracker, the one path of `aim track`, `aim replay` and `host-sim fly`;
 //! - [`status`]: per-array link and board counters, the status line of `aim track`;
+//! - [`serve`]: the live map in the browser (`--serve`);
 //! - [`profile`], [`site`]: drone profiles and site files (TOML);
 //! - [`output`]: fixes to other systems (MAVLink to an autopilot, in the site's NED frame).
 #![warn(missing_docs)]
@@ -29,6 +30,7 @@ pub mod motion;
 pub mod observation;
 pub mod output;
 pub mod profile;
+pub mod serve;
 pub mod session;
 pub mod site;
 pub mod status;

@@ -13,6 +13,7 @@ use aim_tracker::link::{self, FrameSource};
 use aim_tracker::output::mavlink::MavlinkOut;
 use aim_tracker::output::ned::Origin;
 use aim_tracker::profile::Profile;
+use aim_tracker::serve::tap::Tap;
 use aim_tracker::session::Session;
 use aim_tracker::site::Site;
 use aim_tracker::tracker::{Tracker, TrackerConfig};
@@ -38,6 +39,8 @@ pub struct TrackOptions {
     pub period: f64,
     #[command(flatten)]
     pub mavlink: MavlinkArgs,
+    #[command(flatten)]
+    pub serve: super::serve::ServeArgs,
 }
 
 /// The MAVLink output of `aim track`/`aim replay` (see `aim_tracker::output::mavlink`).
@@ -94,11 +97,16 @@ pub struct Args {
     frames: String,
     #[command(flatten)]
     options: TrackOptions,
+    /// Replay pace: `free` (as fast as possible), `real` (the link's pace) or a speed-up such
+    /// as `4`; with `--serve` the map then updates as it would live.
+    #[arg(long, default_value = "free", value_name = "real|N|free")]
+    pace: aim_tracker::serve::tap::Pace,
 }
 
 /// Feeds every frame of `source` through the session, printing fixes as JSON lines as soon as
 /// they are available (`live`: flushed one by one) and sending them to `mavlink` if given,
-/// then the statistics line on stderr (and `{"kind":"mavlink","sent":..,"failed":..}`).
+/// then the statistics line on stderr (and `{"kind":"mavlink","sent":..,"failed":..}`). Every
+/// fix also goes to `also` after it is printed (the live map, the bus).
 pub fn track_frames<R: std::io::Read>(
     name: &str,
     source: &mut FrameSource<R>,
@@ -106,6 +114,7 @@ pub fn track_frames<R: std::io::Read>(
     site: &std::path::Path,
     live: bool,
     mavlink: Option<&MavlinkOut>,
+    also: &mut dyn FnMut(&aim_tracker::tracker::Fix) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
@@ -117,7 +126,7 @@ pub fn track_frames<R: std::io::Read>(
         if live {
             out.flush().context("writing to stdout")?;
         }
-        Ok(())
+        also(fix)
     });
     out.flush().context("writing to stdout")?;
     eprintln!("{}", session.stats_json(source.stats()));
@@ -132,7 +141,23 @@ pub fn track_frames<R: std::io::Read>(
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut session = args.options.build()?;
     let mavlink = args.options.mavlink.open(&args.options.site)?;
-    let mut source = FrameSource::new(link::open_input(&args.frames)?);
-    let site = &args.options.site;
-    track_frames(&args.frames, &mut source, &mut session, site, false, mavlink.as_ref())
+    let map = args.options.serve.start(&args.options.site)?;
+    let input = link::open_input(&args.frames)?;
+    let mut source = FrameSource::new(Tap::new(input, map.clone(), args.pace));
+    let result = track_frames(
+        &args.frames,
+        &mut source,
+        &mut session,
+        &args.options.site,
+        false,
+        mavlink.as_ref(),
+        &mut |fix| super::serve::show(&map, fix),
+    );
+    if let Some(map) = map {
+        map.end();
+        if result.is_ok() {
+            super::serve::serve_until_interrupted(&map)?;
+        }
+    }
+    result
 }
