@@ -483,32 +483,9 @@ impl Filter for AimFilter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::doa::DoaState;
     use crate::dynamics::AcousticSpeed;
-    use crate::observation::angles_of;
     use crate::site::ArrayPose;
-
-    fn doa(t: f64, pos: [f64; 3], rng: &mut crate::testutil::Rng) -> DoaState {
-        let (az, zen) = angles_of(pos);
-        DoaState {
-            t,
-            azimuth_rad: az + 0.5f64.to_radians() * rng.normal(),
-            zenith_rad: zen + 0.5f64.to_radians() * rng.normal(),
-            azimuth_rate: 0.0,
-            zenith_rate: 0.0,
-            angular_rate: 0.0,
-            angular_rate_sigma: 0.0,
-            erratic_rad: 0.0,
-            fit_residual: 0.2,
-            quality: 0.5,
-            inlier_fraction: 1.0,
-            inliers: 6,
-            noise_rad: 0.01,
-            time_spread_s: 0.5,
-            los: true,
-            moving: false,
-        }
-    }
+    use crate::testutil::doa;
 
     /// A drone hovers, then flies a straight leg at 1.5 m/s in `heading` (rad); returns the
     /// filter's velocity direction and position error at the end of the leg.
