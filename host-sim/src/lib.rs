@@ -35,6 +35,7 @@ pub mod room;
 pub mod scenario;
 pub mod site;
 pub mod sound;
+pub mod tonal;
 pub mod truth;
 pub mod wav;
 pub mod window;
