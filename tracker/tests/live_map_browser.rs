@@ -93,15 +93,7 @@ fn the_page_receives_and_draws_the_fixes_of_aim_replay() {
     std::fs::write(&site, SITE).unwrap();
     std::fs::write(&recording, common::bytes(&frames)).unwrap();
 
-    let replay = Command::new(env!("CARGO_BIN_EXE_aim"))
-        .arg("replay")
-        .arg(&recording)
-        .arg("--site")
-        .arg(&site)
-        .output()
-        .unwrap();
-    assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
-    let replayed = String::from_utf8(replay.stdout).unwrap();
+    let replayed = common::aim_replay(&recording, &site);
     let fixes: Vec<serde_json::Value> =
         replayed.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert!(fixes.len() > 20);

@@ -114,15 +114,8 @@ fn fixes_arrive_as_vision_position_estimates_in_ned() {
     let port: u16 =
         first.trim().strip_prefix("port ").expect("receiver's port line").parse().unwrap();
 
-    let aim = Command::new(env!("CARGO_BIN_EXE_aim"))
-        .arg("replay")
-        .arg(&rec)
-        .arg("--site")
-        .arg(&site_path)
-        .arg("--mavlink")
-        .arg(format!("udpout:127.0.0.1:{port}"))
-        .output()
-        .unwrap();
+    let udpout = format!("udpout:127.0.0.1:{port}");
+    let aim = common::aim_replay_output(&rec, &site_path, &["--mavlink", &udpout]);
     if !aim.status.success() {
         let _ = receiver.kill();
         panic!("aim replay failed: {}", String::from_utf8_lossy(&aim.stderr));

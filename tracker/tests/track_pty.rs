@@ -27,15 +27,7 @@ fn aim_track_on_a_pty_at_link_pace_equals_aim_replay() {
     std::fs::write(&site, common::SITE_TOML).unwrap();
     std::fs::write(&recording, common::bytes(&frames)).unwrap();
 
-    let replay = Command::new(env!("CARGO_BIN_EXE_aim"))
-        .arg("replay")
-        .arg(&recording)
-        .arg("--site")
-        .arg(&site)
-        .output()
-        .unwrap();
-    assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
-    let replayed = String::from_utf8(replay.stdout).unwrap();
+    let replayed = common::aim_replay(&recording, &site);
     assert!(replayed.lines().count() > 20, "{replayed}");
 
     // How many fixes are out before the end of the stream (the rest come when the link ends).

@@ -1,7 +1,11 @@
 //! A synthetic array link for the intake tests: the frames a board would send while a drone
 //! hovers and drifts near it, in link order (each output when its span ends, as the firmware
-//! sends them), and the site file that goes with them.
+//! sends them), and the site file that goes with them; and `aim replay` of a recording, the
+//! oracle of the command-line tests.
 #![allow(dead_code)]
+
+use std::path::Path;
+use std::process::{Command, Output};
 
 use aim_tracker::observation::angles_of;
 use aim_tracker::profile::Profile;
@@ -121,4 +125,24 @@ pub fn bytes(frames: &[Frame]) -> Vec<u8> {
         out.extend_from_slice(&buf[..n]);
     }
     out
+}
+
+/// Runs `aim replay RECORDING --site SITE` with `extra` arguments appended, to its end.
+pub fn aim_replay_output(recording: &Path, site: &Path, extra: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_aim"))
+        .arg("replay")
+        .arg(recording)
+        .arg("--site")
+        .arg(site)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+/// What `aim replay RECORDING --site SITE` prints (its JSON lines); fails the test with the
+/// command's stderr if it fails.
+pub fn aim_replay(recording: &Path, site: &Path) -> String {
+    let replay = aim_replay_output(recording, site, &[]);
+    assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
+    String::from_utf8(replay.stdout).unwrap()
 }
