@@ -128,7 +128,7 @@ impl FrameCentre {
 mod tests {
     use super::*;
     use crate::filter::ekf::{Ekf, LN_REST, STATE, ZENITH_BIAS};
-    use crate::linalg::Mat;
+    use crate::linalg::{asymmetry, diagonal};
     use crate::observation::{angles_of, norm};
     use crate::site::ArrayPose;
 
@@ -181,7 +181,7 @@ mod tests {
         let x0 = at(0.0).map(|x| x * start_range);
         let mut ekf = Ekf::new(
             [x0[0], x0[1], x0[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
-            Mat::diagonal(&[1.0, 1.0, 0.25, 4.0, 4.0, 0.01, 1e-6, 0.05f64.powi(2), 1e-6]),
+            diagonal([1.0, 1.0, 0.25, 4.0, 4.0, 0.01, 1e-6, 0.05f64.powi(2), 1e-6]),
         );
         let sigma_b = 0.5f64.to_radians();
         let dt = 0.1;
@@ -200,7 +200,7 @@ mod tests {
                 ll += ekf.update_doppler(&array, z, 0.003, c).unwrap_or(0.0);
             }
         }
-        assert!(ekf.p.asymmetry() < 1e-9 && ekf.p[(ZENITH_BIAS, ZENITH_BIAS)] > 0.0);
+        assert!(asymmetry(&ekf.p) < 1e-9 && ekf.p[(ZENITH_BIAS, ZENITH_BIAS)] > 0.0);
         assert_eq!(ekf.x.len(), STATE);
         if doppler && start_range == 1.0 {
             // The unknown rest frequency is absorbed by its state.

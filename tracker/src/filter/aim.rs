@@ -7,9 +7,9 @@
 //! bearing, speed and motion-class updates, weighted by its measurement likelihoods. The
 //! mixture's covariance (spread of hypotheses included) is reported honestly.
 
-use super::ekf::{Ekf, LN_REST, STATE, WAKE_GAIN, ZENITH_BIAS};
+use super::ekf::{Ekf, StateCov, LN_REST, STATE, WAKE_GAIN, ZENITH_BIAS};
 use super::{max_range_in_room, world_direction, Estimate, Filter, Step};
-use crate::linalg::Mat;
+use crate::linalg::symmetrized;
 use crate::motion::MotionClass;
 
 /// Tunables of the mixture.
@@ -187,7 +187,7 @@ impl AimFilter {
                 // Along the ray: half the spacing to the neighbours; across: the bearing noise.
                 let along = r * (ratio - 1.0) * 0.5;
                 let across = r * 3.0f64.to_radians();
-                let mut cov = Mat::zeros(STATE, STATE);
+                let mut cov = StateCov::zeros();
                 cov[(ZENITH_BIAS, ZENITH_BIAS)] = c.zenith_bias_sigma.powi(2);
                 cov[(LN_REST, LN_REST)] = c.rest_sigma.powi(2);
                 cov[(WAKE_GAIN, WAKE_GAIN)] = c.wake_gain_sigma.powi(2);
@@ -199,7 +199,7 @@ impl AimFilter {
                     }
                     cov[(i + 3, i + 3)] = 0.5;
                 }
-                (-(n as f64).ln(), Ekf::new(x, cov.symmetrized()))
+                (-(n as f64).ln(), Ekf::new(x, symmetrized(&cov)))
             })
             .collect();
         true
@@ -322,7 +322,7 @@ impl AimFilter {
                 *m += w / total * x;
             }
         }
-        let mut cov = Mat::zeros(3, 3);
+        let mut cov = nalgebra::Matrix3::zeros();
         for (w, (_, f)) in ws.iter().zip(&self.components) {
             for i in 0..3 {
                 for j in 0..3 {
@@ -334,7 +334,7 @@ impl AimFilter {
         Estimate {
             position: [mean[0], mean[1], mean[2]],
             velocity: [mean[3], mean[4], mean[5]],
-            position_covariance: cov.symmetrized(),
+            position_covariance: symmetrized(&cov),
         }
     }
 }
@@ -571,7 +571,7 @@ mod tests {
         let truth = [5.0, 3.0, 2.0];
         let collapsed = 2.0 / crate::observation::norm(truth);
         let here = truth.map(|x| x * collapsed);
-        let mut cov = Mat::identity(STATE).scaled(0.01);
+        let mut cov = StateCov::identity() * 0.01;
         cov[(LN_REST, LN_REST)] = 1e-4;
         filter.components =
             vec![(0.0, Ekf::new([here[0], here[1], here[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01], cov))];

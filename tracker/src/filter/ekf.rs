@@ -9,7 +9,9 @@
 //! a first-order Gauss–Markov process it lets zenith *changes* inform the track while the
 //! absolute zenith only counts within the bias's spread.
 
-use crate::linalg::Mat;
+use nalgebra::{Const, DimMin, SMatrix, SVector};
+
+use crate::linalg::{diagonal, symmetrized};
 use crate::observation::{angles_of, wrap_pi};
 use crate::site::ArrayPose;
 
@@ -26,6 +28,9 @@ pub const LN_REST: usize = 7;
 /// m/s of horizontal airspeed (dimensionless per m/s), learned online ([`Ekf::update_wake_split`]).
 pub const WAKE_GAIN: usize = 8;
 
+/// A covariance of the state, 9×9.
+pub type StateCov = SMatrix<f64, STATE, STATE>;
+
 /// State and covariance of one constant-velocity EKF.
 #[derive(Clone, Debug)]
 pub struct Ekf {
@@ -33,7 +38,7 @@ pub struct Ekf {
     /// against the reference (dimensionless), wake-split gain (per m/s).
     pub x: [f64; STATE],
     /// Covariance, 9×9.
-    pub p: Mat,
+    pub p: StateCov,
 }
 
 /// Which components of an innovation are angles (wrapped to (−π, π]).
@@ -47,7 +52,7 @@ pub enum Residual {
 
 impl Ekf {
     /// A filter at `x` with covariance `p`.
-    pub fn new(x: [f64; STATE], p: Mat) -> Self {
+    pub fn new(x: [f64; STATE], p: StateCov) -> Self {
         Self { x, p }
     }
 
@@ -68,7 +73,7 @@ impl Ekf {
         if dt <= 0.0 {
             return;
         }
-        let mut f = Mat::identity(STATE);
+        let mut f = StateCov::identity();
         for i in 0..3 {
             f[(i, i + 3)] = dt;
             self.x[i] += dt * self.x[i + 3];
@@ -76,7 +81,7 @@ impl Ekf {
         let decay = (-dt / bias_tau_s.max(1e-3)).exp();
         f[(ZENITH_BIAS, ZENITH_BIAS)] = decay;
         self.x[ZENITH_BIAS] *= decay;
-        let mut qm = Mat::zeros(STATE, STATE);
+        let mut qm = StateCov::zeros();
         qm[(ZENITH_BIAS, ZENITH_BIAS)] = bias_sigma * bias_sigma * (1.0 - decay * decay);
         for (i, qi) in q.iter().enumerate() {
             qm[(i, i)] = qi * dt.powi(3) / 3.0;
@@ -84,7 +89,7 @@ impl Ekf {
             qm[(i + 3, i)] = qi * dt.powi(2) / 2.0;
             qm[(i + 3, i + 3)] = qi * dt;
         }
-        self.p = (&(&(&f * &self.p) * &f.t()) + &qm).symmetrized();
+        self.p = symmetrized(&(f * self.p * f.transpose() + qm));
     }
 
     /// Lets the emitted BPF wander: adds `variance` to the variance of its log (a random walk;
@@ -121,49 +126,50 @@ impl Ekf {
         let predicted = crate::doppler::observed_ln_ratio(self.x[LN_REST], rel, v, speed_of_sound)?;
         // ∂/∂w of −ln(1 + w/c) is −1/(c + w); w = v·u, ∂w/∂v = u, ∂w/∂p = (v − w u)/r.
         let dw = -1.0 / (speed_of_sound + w);
-        let mut h = Mat::zeros(1, STATE);
+        let mut h = SMatrix::<f64, 1, STATE>::zeros();
         for i in 0..3 {
             h[(0, i)] = dw * (v[i] - w * u[i]) / r;
             h[(0, 3 + i)] = dw * u[i];
         }
         h[(0, LN_REST)] = 1.0;
-        let r_noise = Mat::diagonal(&[sigma * sigma]);
+        let r_noise = diagonal([sigma * sigma]);
         self.update(&[ln_ratio], &[predicted], &h, &r_noise, Residual::Linear)
     }
 
-    /// Update with measurement `z`, prediction `hx`, Jacobian `h` (m×8) and noise `r` (m×m).
+    /// Update with measurement `z`, prediction `hx`, Jacobian `h` (M×9) and noise `r` (M×M).
     /// Returns the log-likelihood of the innovation, or `None` (no update) if the innovation
     /// covariance is singular.
-    pub fn update(
+    pub fn update<const M: usize>(
         &mut self,
-        z: &[f64],
-        hx: &[f64],
-        h: &Mat,
-        r: &Mat,
+        z: &[f64; M],
+        hx: &[f64; M],
+        h: &SMatrix<f64, M, STATE>,
+        r: &SMatrix<f64, M, M>,
         kind: Residual,
-    ) -> Option<f64> {
-        let m = z.len();
-        let mut y: Vec<f64> = z.iter().zip(hx).map(|(a, b)| a - b).collect();
+    ) -> Option<f64>
+    where
+        Const<M>: DimMin<Const<M>, Output = Const<M>>,
+    {
+        let mut y = SVector::<f64, M>::from_fn(|i, _| z[i] - hx[i]);
         if kind == Residual::AzimuthFirst {
             y[0] = wrap_pi(y[0]);
         }
-        let pht = &self.p * &h.t();
-        let s = (&(h * &pht) + r).symmetrized();
-        let s_inv = s.inverse()?;
+        let pht = self.p * h.transpose();
+        let s = symmetrized(&(h * pht + r));
+        let s_inv = s.try_inverse()?;
         let det = s.determinant();
         if det <= 0.0 {
             return None;
         }
-        let k = &pht * &s_inv;
-        let yv = Mat::column(&y);
-        let dx = &k * &yv;
+        let k = pht * s_inv;
+        let dx = k * y;
         for i in 0..STATE {
-            self.x[i] += dx[(i, 0)];
+            self.x[i] += dx[i];
         }
-        let i_kh = &Mat::identity(STATE) - &(&k * h);
-        self.p = (&(&(&i_kh * &self.p) * &i_kh.t()) + &(&(&k * r) * &k.t())).symmetrized();
-        let maha = (&(&yv.t() * &s_inv) * &yv)[(0, 0)];
-        Some(-0.5 * (maha + det.ln() + m as f64 * (std::f64::consts::TAU).ln()))
+        let i_kh = StateCov::identity() - k * h;
+        self.p = symmetrized(&(i_kh * self.p * i_kh.transpose() + k * r * k.transpose()));
+        let maha = (y.transpose() * s_inv * y)[(0, 0)];
+        Some(-0.5 * (maha + det.ln() + M as f64 * (std::f64::consts::TAU).ln()))
     }
 
     /// The predicted bearing (azimuth, zenith without the bias, rad, array frame) and its
@@ -209,25 +215,25 @@ impl Ekf {
         sigma_zen: f64,
     ) -> Option<f64> {
         let ((az0, zen0), jacobian) = self.predicted_bearing(array);
-        let mut h = Mat::zeros(2, STATE);
+        let mut h = SMatrix::<f64, 2, STATE>::zeros();
         for i in 0..3 {
             h[(0, i)] = jacobian[0][i];
             h[(1, i)] = jacobian[1][i];
         }
         h[(1, ZENITH_BIAS)] = 1.0;
         let zen0 = zen0 + self.x[ZENITH_BIAS];
-        let r = Mat::diagonal(&[sigma_az * sigma_az, sigma_zen * sigma_zen]);
+        let r = diagonal([sigma_az * sigma_az, sigma_zen * sigma_zen]);
         self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)
     }
 
     /// Azimuth-only update (rad, array frame, standard deviation `sigma`).
     pub fn update_azimuth(&mut self, array: &ArrayPose, azimuth: f64, sigma: f64) -> Option<f64> {
         let ((az0, _), jacobian) = self.predicted_bearing(array);
-        let mut h = Mat::zeros(1, STATE);
+        let mut h = SMatrix::<f64, 1, STATE>::zeros();
         for i in 0..3 {
             h[(0, i)] = jacobian[0][i];
         }
-        let r = Mat::diagonal(&[sigma * sigma]);
+        let r = diagonal([sigma * sigma]);
         self.update(&[azimuth], &[az0], &h, &r, Residual::AzimuthFirst)
     }
 
@@ -238,10 +244,10 @@ impl Ekf {
         if s < 0.05 {
             return None;
         }
-        let mut h = Mat::zeros(1, STATE);
+        let mut h = SMatrix::<f64, 1, STATE>::zeros();
         h[(0, 3)] = self.x[3] / s;
         h[(0, 4)] = self.x[4] / s;
-        self.update(&[speed], &[s], &h, &Mat::diagonal(&[sigma * sigma]), Residual::Linear)
+        self.update(&[speed], &[s], &h, &diagonal([sigma * sigma]), Residual::Linear)
     }
 
     /// Wake-split update: the change of the relative front/rear BPF split against hover,
@@ -255,26 +261,33 @@ impl Ekf {
             return None;
         }
         let k = self.x[WAKE_GAIN];
-        let mut h = Mat::zeros(1, STATE);
+        let mut h = SMatrix::<f64, 1, STATE>::zeros();
         h[(0, 3)] = k * self.x[3] / s;
         h[(0, 4)] = k * self.x[4] / s;
         h[(0, WAKE_GAIN)] = s;
-        let ll =
-            self.update(&[split], &[k * s], &h, &Mat::diagonal(&[sigma * sigma]), Residual::Linear);
+        let ll = self.update(&[split], &[k * s], &h, &diagonal([sigma * sigma]), Residual::Linear);
         // The gain is a positive physical constant: a linearised step may not cross zero.
         self.x[WAKE_GAIN] = self.x[WAKE_GAIN].max(1e-4);
         ll
     }
 
     /// Linear update of selected velocity components towards `values` ± `sigma`.
-    pub fn update_velocity(&mut self, axes: &[usize], values: &[f64], sigma: f64) -> Option<f64> {
-        let mut h = Mat::zeros(axes.len(), STATE);
-        let mut hx = Vec::with_capacity(axes.len());
+    pub fn update_velocity<const M: usize>(
+        &mut self,
+        axes: &[usize; M],
+        values: &[f64; M],
+        sigma: f64,
+    ) -> Option<f64>
+    where
+        Const<M>: DimMin<Const<M>, Output = Const<M>>,
+    {
+        let mut h = SMatrix::<f64, M, STATE>::zeros();
+        let mut hx = [0.0; M];
         for (row, &axis) in axes.iter().enumerate() {
             h[(row, 3 + axis)] = 1.0;
-            hx.push(self.x[3 + axis]);
+            hx[row] = self.x[3 + axis];
         }
-        let r = Mat::identity(axes.len()).scaled(sigma * sigma);
+        let r = SMatrix::<f64, M, M>::identity() * (sigma * sigma);
         self.update(values, &hx, &h, &r, Residual::Linear)
     }
 }
@@ -283,8 +296,10 @@ impl Ekf {
 mod tests {
     use super::*;
 
-    fn assert_spd(p: &Mat) {
-        assert!(p.asymmetry() < 1e-12, "asymmetric: {}", p.asymmetry());
+    use crate::linalg::asymmetry;
+
+    fn assert_spd(p: &StateCov) {
+        assert!(asymmetry(p) < 1e-12, "asymmetric: {}", asymmetry(p));
         assert!(p.cholesky().is_some(), "not positive definite: {p:?}");
     }
 
@@ -293,7 +308,7 @@ mod tests {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.3, 0.0, 0.0);
         let mut f = Ekf::new(
             [5.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
-            Mat::diagonal(&[4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-2, 1e-4]),
+            diagonal([4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-2, 1e-4]),
         );
         let mut rng = crate::testutil::Rng::new(11);
         for k in 0..300 {
@@ -339,7 +354,7 @@ mod tests {
         let truth = [8.0, 3.0, 2.0];
         let mut f = Ekf::new(
             [truth[0], truth[1], truth[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
-            Mat::diagonal(&[1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 0.1f64.powi(2), 1e-4, 1e-4]),
+            diagonal([1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 0.1f64.powi(2), 1e-4, 1e-4]),
         );
         let (az, zen) = angles_of(truth);
         let offset = 3.0f64.to_radians();
@@ -361,7 +376,7 @@ mod tests {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut f = Ekf::new(
             [6.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
-            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-4]),
+            diagonal([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-4]),
         );
         let range = |f: &Ekf| f.x[0].hypot(f.x[1]);
         let before = range(&f);
@@ -377,7 +392,7 @@ mod tests {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut f = Ekf::new(
             [5.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
-            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-6, 1e-6, 1e-6]),
+            diagonal([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-6, 1e-6, 1e-6]),
         );
         let truth = [5.0, 1.0, 2.0];
         let (az, zen) = angles_of(truth);
@@ -395,7 +410,7 @@ mod tests {
         // per frame: the gain state, started at 0.01 ± 0.01, must end within 5 % of 0.007.
         let mut f = Ekf::new(
             [5.0, 0.0, 2.0, 1.5, 0.0, 0.0, 0.0, 0.0, 0.01],
-            Mat::diagonal(&[0.01, 0.01, 0.01, 0.01, 0.01, 0.01, 1e-6, 1e-6, 1e-4]),
+            diagonal([0.01, 0.01, 0.01, 0.01, 0.01, 0.01, 1e-6, 1e-6, 1e-4]),
         );
         let mut rng = crate::testutil::Rng::new(3);
         for _ in 0..400 {
@@ -408,7 +423,7 @@ mod tests {
         // And the other way round: with the gain known, a split reads the speed.
         let mut g = Ekf::new(
             [5.0, 0.0, 2.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.007],
-            Mat::diagonal(&[0.01, 0.01, 0.01, 1.0, 0.01, 0.01, 1e-6, 1e-6, 1e-10]),
+            diagonal([0.01, 0.01, 0.01, 1.0, 0.01, 0.01, 1e-6, 1e-6, 1e-10]),
         );
         for _ in 0..50 {
             g.update_wake_split(0.007 * 1.5, 0.001).unwrap();

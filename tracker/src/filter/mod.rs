@@ -11,7 +11,6 @@ pub mod paper;
 
 use crate::doa::DoaState;
 use crate::dynamics::AcousticSpeed;
-use crate::linalg::Mat;
 use crate::motion::MotionClass;
 use crate::site::{ArrayPose, Room};
 
@@ -79,7 +78,7 @@ pub struct Estimate {
     /// Velocity, m/s.
     pub velocity: [f64; 3],
     /// Covariance of the position (3×3, m²).
-    pub position_covariance: Mat,
+    pub position_covariance: nalgebra::Matrix3<f64>,
 }
 
 /// A tracking filter.

@@ -19,9 +19,11 @@
 
 use std::collections::VecDeque;
 
+use nalgebra::{Matrix3, Vector3};
+
 use super::{max_range_in_room, Estimate, Filter, Step};
 use crate::iqr::iqr_inliers;
-use crate::linalg::Mat;
+use crate::linalg::symmetrized;
 use crate::motion::MotionClass;
 
 /// Tunables of the baseline.
@@ -179,7 +181,7 @@ impl HeightSolver {
 #[derive(Clone, Debug, Default)]
 pub struct PaperFilter {
     config: PaperConfig,
-    state: Option<([f64; 3], Mat)>,
+    state: Option<([f64; 3], Matrix3<f64>)>,
     solver: HeightSolver,
     /// Recent LoS coordinates (t, position) for the heading.
     recent: VecDeque<(f64, [f64; 3])>,
@@ -243,8 +245,8 @@ impl Filter for PaperFilter {
             // The first fix from the first DoA, LoS or not (the paper initialises A_0 from the
             // first points of the flight).
             let z = coordinate(w?, &mut h);
-            let p = Mat::identity(3).scaled(c.sigma_initial_m.powi(2));
-            self.state = Some((z, p.clone()));
+            let p = Matrix3::identity() * c.sigma_initial_m.powi(2);
+            self.state = Some((z, p));
             return Some(Estimate { position: z, velocity: [0.0; 3], position_covariance: p });
         };
         // Predict with the acoustic displacement.
@@ -258,17 +260,17 @@ impl Filter for PaperFilter {
             MotionClass::Hover | MotionClass::Yaw => [0.0; 3],
         };
         let x_pred = [x[0] + u[0], x[1] + u[1], x[2] + u[2]];
-        let p_pred = &p + &Mat::identity(3).scaled(c.q * step.dt);
+        let p_pred = p + Matrix3::identity() * (c.q * step.dt);
         let (x_new, p_new) = match los_w {
             Some(w) => {
                 let z = coordinate(w, &mut h);
-                let r = Mat::identity(3).scaled(c.sigma_los_m.powi(2));
-                let k = &p_pred * &(&p_pred + &r).inverse()?;
-                let y = Mat::column(&[z[0] - x_pred[0], z[1] - x_pred[1], z[2] - x_pred[2]]);
-                let dx = &k * &y;
-                let i_k = &Mat::identity(3) - &k;
-                let p = (&(&(&i_k * &p_pred) * &i_k.t()) + &(&(&k * &r) * &k.t())).symmetrized();
-                ([x_pred[0] + dx[(0, 0)], x_pred[1] + dx[(1, 0)], x_pred[2] + dx[(2, 0)]], p)
+                let r = Matrix3::identity() * c.sigma_los_m.powi(2);
+                let k = p_pred * (p_pred + r).try_inverse()?;
+                let y = Vector3::new(z[0] - x_pred[0], z[1] - x_pred[1], z[2] - x_pred[2]);
+                let dx = k * y;
+                let i_k = Matrix3::identity() - k;
+                let p = symmetrized(&(i_k * p_pred * i_k.transpose() + k * r * k.transpose()));
+                ([x_pred[0] + dx[0], x_pred[1] + dx[1], x_pred[2] + dx[2]], p)
             }
             None => (x_pred, p_pred),
         };
@@ -293,7 +295,7 @@ impl Filter for PaperFilter {
         } else {
             [0.0; 3]
         };
-        self.state = Some((x_new, p_new.clone()));
+        self.state = Some((x_new, p_new));
         Some(Estimate { position: x_new, velocity, position_covariance: p_new })
     }
 }
