@@ -10,14 +10,20 @@
 //!   standard deviation over the frames (the manoeuvre), mean salience, mean half- and
 //!   third-way levels, mean harmonic envelope (10);
 //! - the same nine harmonic features of the clip's mean power spectrum (lines stand out of the
-//!   noise there far better than in one frame; 9).
+//!   noise there far better than in one frame; 9);
+//! - the frames' comb fundamental, half-, third-way levels and envelope again, averaged with
+//!   weights `max(0, salience − 3 dB)²` (frames where the comb stands clear of the noise count,
+//!   the others hardly; 8), the 90th percentile of the salience (1), the spectral flux (mean
+//!   absolute frame-to-frame change of the level-free log-mel, dB; speech and music change,
+//!   rotors hum; 1) and the share of frames whose fundamental is within 1/12 octave of the
+//!   previous frame's (a rotor's comb glides, a voice or a tune jumps; 1).
 use aim_dsp::features::{Extractor, BINS, FRAME_LEN, HARMONIC_FEATURES, MEL_BANDS, MFCC_COUNT};
 
 /// Hop between frames, samples.
 pub const HOP: usize = FRAME_LEN / 2;
 /// Length of a clip's feature vector.
 pub const FEATURES: usize =
-    2 * (MFCC_COUNT - 1) + MEL_BANDS + (HARMONIC_FEATURES + 1) + HARMONIC_FEATURES;
+    2 * (MFCC_COUNT - 1) + MEL_BANDS + (HARMONIC_FEATURES + 1) + HARMONIC_FEATURES + 11;
 
 /// Names of the features, in vector order.
 pub fn names() -> Vec<String> {
@@ -41,6 +47,12 @@ pub fn names() -> Vec<String> {
     for n in &h {
         v.push(format!("clip_{n}"));
     }
+    for n in h.iter().filter(|n| **n != "salience_db") {
+        v.push(format!("weighted_{n}"));
+    }
+    v.push("salience_p90_db".into());
+    v.push("log_mel_flux_db".into());
+    v.push("f0_continuity".into());
     v
 }
 
@@ -89,6 +101,30 @@ pub fn features(x: &[f32], ex: &Extractor) -> Vec<f32> {
         v.push(mean_sd(h.iter().map(move |a| a[i])).0);
     }
     v.extend(ex.features(&mean_power).harmonic.to_array());
+    let w: Vec<f32> = h.iter().map(|a| (a[1] - 3.0).max(0.0).powi(2) + 1e-6).collect();
+    let wsum: f32 = w.iter().sum();
+    for i in (0..HARMONIC_FEATURES).filter(|&i| i != 1) {
+        v.push(h.iter().zip(&w).map(|(a, w)| a[i] * w).sum::<f32>() / wsum);
+    }
+    let mut sal: Vec<f32> = h.iter().map(|a| a[1]).collect();
+    sal.sort_by(f32::total_cmp);
+    v.push(sal.get(sal.len() * 9 / 10).copied().unwrap_or(0.0));
+    let rel = |f: &aim_dsp::features::FrameFeatures| {
+        let m = f.log_mel_db.iter().sum::<f32>() / MEL_BANDS as f32;
+        f.log_mel_db.map(|l| l - m)
+    };
+    let pairs = frames.len().saturating_sub(1).max(1) as f32;
+    let flux: f32 = frames
+        .windows(2)
+        .map(|p| {
+            let (a, b) = (rel(&p[0]), rel(&p[1]));
+            a.iter().zip(&b).map(|(x, y)| (x - y).abs()).sum::<f32>() / MEL_BANDS as f32
+        })
+        .sum::<f32>()
+        / pairs;
+    v.push(flux);
+    let steady = h.windows(2).filter(|p| (p[0][0] - p[1][0]).abs() < 1.0 / 12.0).count();
+    v.push(steady as f32 / pairs);
     debug_assert_eq!(v.len(), FEATURES);
     v
 }
@@ -117,7 +153,8 @@ mod tests {
         assert_eq!(a.len(), FEATURES);
         assert!(a.iter().all(|v| v.is_finite()));
         // The clip's comb fundamental is 300 Hz within the 1/24-octave grid.
-        let f0 = 250.0 * 2f32.powf(a[FEATURES - HARMONIC_FEATURES]);
+        let at = names().iter().position(|n| n == "clip_log2_f0").unwrap();
+        let f0 = 250.0 * 2f32.powf(a[at]);
         assert!((f0 / 300.0 - 1.0).abs() < 0.03, "{f0}");
         // 20 dB louder: the same features (level-free), to float rounding.
         let loud: Vec<f32> = x.iter().map(|v| 10.0 * v).collect();
