@@ -165,18 +165,16 @@ impl Extractor {
         let floor = total * 1e-10 + 1e-30;
         // Mel energies.
         let mut mel = [0.0f32; MEL_BANDS];
-        for k in 0..BINS {
-            let seg = self.segment[k];
+        for ((&seg, &w), &p) in self.segment.iter().zip(&self.rise).zip(power) {
             if seg == u8::MAX {
                 continue;
             }
             let seg = seg as usize;
-            let w = self.rise[k];
             if seg < MEL_BANDS {
-                mel[seg] += w * power[k];
+                mel[seg] += w * p;
             }
             if seg >= 1 {
-                mel[seg - 1] += (1.0 - w) * power[k];
+                mel[seg - 1] += (1.0 - w) * p;
             }
         }
         let mut log_mel_db = [0.0f32; MEL_BANDS];

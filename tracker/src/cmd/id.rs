@@ -94,18 +94,17 @@ fn features_of(path: &Path, ex: &Extractor) -> anyhow::Result<Vec<f32>> {
 fn load(
     classes: &[dataset::Class],
     index: impl Fn(&str) -> anyhow::Result<usize>,
-) -> anyhow::Result<(Vec<Vec<f32>>, Vec<usize>, Vec<PathBuf>)> {
+) -> anyhow::Result<(Vec<Vec<f32>>, Vec<usize>)> {
     let ex = Extractor::new();
-    let (mut x, mut y, mut files) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut x, mut y) = (Vec::new(), Vec::new());
     for c in classes {
         let label = index(&c.name)?;
         for f in &c.files {
             x.push(features_of(f, &ex)?);
             y.push(label);
-            files.push(f.clone());
         }
     }
-    Ok((x, y, files))
+    Ok((x, y))
 }
 
 fn argmax(p: &[f32]) -> usize {
@@ -118,7 +117,7 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
         bail!("{}: one class ({}); training needs at least two", a.dir.display(), classes[0].name);
     }
     let names: Vec<String> = classes.iter().map(|c| c.name.clone()).collect();
-    let (x, y, _) = load(&classes, |n| Ok(names.iter().position(|c| c == n).unwrap_or(0)))?;
+    let (x, y) = load(&classes, |n| Ok(names.iter().position(|c| c == n).unwrap_or(0)))?;
     let t = model::Training {
         epochs: a.epochs,
         hidden_units: a.hidden.max(1),
@@ -149,7 +148,7 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
     }
     let m = model::Model::load(&a.model)?;
     let classes = dataset::scan(&a.dir)?;
-    let (x, y, _) = load(&classes, |n| {
+    let (x, y) = load(&classes, |n| {
         m.classes.iter().position(|c| c == n).with_context(|| {
             format!(
                 "{}: class `{n}` is not one the model knows ({})",
