@@ -46,6 +46,9 @@ struct TrainArgs {
     /// Hidden units.
     #[arg(long, default_value_t = model::Training::default().hidden_units)]
     hidden: usize,
+    /// Networks in the ensemble (their probabilities averaged).
+    #[arg(long, default_value_t = model::Training::default().members)]
+    members: usize,
     /// Seed of the initial weights and batch order.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -121,6 +124,7 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
     let t = model::Training {
         epochs: a.epochs,
         hidden_units: a.hidden.max(1),
+        members: a.members.max(1),
         seed: a.seed,
         ..model::Training::default()
     };

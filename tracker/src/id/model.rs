@@ -1,5 +1,5 @@
-//! The classifier: a multilayer perceptron with one hidden layer (tanh) and a softmax output,
-//! on standardised features, stored as a JSON file ([`Model`]'s fields, format
+//! The classifier: an ensemble of multilayer perceptrons with one hidden layer (tanh) and a
+//! softmax output each (their probabilities averaged), on standardised features, stored as a JSON file ([`Model`]'s fields, format
 //! [`FORMAT`]).
 //!
 //! Why not an ML crate: linfa and smartcore were the candidates. A clip-level feature vector
@@ -15,7 +15,7 @@ use anyhow::{bail, Context as _};
 use serde::{Deserialize, Serialize};
 
 /// Format tag of the model file.
-pub const FORMAT: &str = "aim-id-mlp-1";
+pub const FORMAT: &str = "aim-id-mlp-2";
 
 /// A dense layer: `out = W x + b`, `weights[o][i]`.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -38,6 +38,28 @@ impl Layer {
     }
 }
 
+/// One network: a tanh hidden layer and a softmax output layer.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Net {
+    /// Hidden layer (tanh).
+    pub hidden: Layer,
+    /// Output layer (softmax).
+    pub output: Layer,
+}
+
+impl Net {
+    /// Class probabilities of a standardised feature vector.
+    fn predict(&self, xs: &[f32]) -> Vec<f32> {
+        let mut h = Vec::new();
+        self.hidden.forward(xs, &mut h);
+        h.iter_mut().for_each(|v| *v = v.tanh());
+        let mut out = Vec::new();
+        self.output.forward(&h, &mut out);
+        softmax(&mut out);
+        out
+    }
+}
+
 /// A trained classifier.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -52,10 +74,8 @@ pub struct Model {
     pub mean: Vec<f32>,
     /// Feature standard deviations of the training set (standardisation).
     pub scale: Vec<f32>,
-    /// Hidden layer (tanh).
-    pub hidden: Layer,
-    /// Output layer (softmax).
-    pub output: Layer,
+    /// The ensemble's networks; the model's probabilities are the mean of theirs.
+    pub members: Vec<Net>,
     /// How it was trained (clips, epochs, seed), for the record.
     pub training: Training,
 }
@@ -63,6 +83,8 @@ pub struct Model {
 /// Training settings.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Training {
+    /// Networks in the ensemble (member i starts from seed `seed + i`).
+    pub members: usize,
     /// Hidden units.
     pub hidden_units: usize,
     /// Passes over the training set.
@@ -82,6 +104,7 @@ pub struct Training {
 impl Default for Training {
     fn default() -> Self {
         Self {
+            members: 3,
             hidden_units: 48,
             epochs: 200,
             batch: 32,
@@ -140,6 +163,83 @@ impl Adam {
     }
 }
 
+/// Trains one network on standardised vectors `xs` (mini-batch Adam, module docs).
+fn train_net(xs: &[Vec<f32>], y: &[usize], d: usize, k: usize, t: &Training, seed: u64) -> Net {
+    let h = t.hidden_units;
+    let mut rng = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+    let (a1, a2) = ((6.0 / (d + h) as f32).sqrt(), (6.0 / (h + k) as f32).sqrt());
+    let mut w1: Vec<f32> = (0..h * d).map(|_| a1 * rng.sym()).collect();
+    let mut b1 = vec![0.0f32; h];
+    let mut w2: Vec<f32> = (0..k * h).map(|_| a2 * rng.sym()).collect();
+    let mut b2 = vec![0.0f32; k];
+    let (mut o_w1, mut o_b1, mut o_w2, mut o_b2) =
+        (Adam::new(h * d), Adam::new(h), Adam::new(k * h), Adam::new(k));
+    let mut order: Vec<usize> = (0..xs.len()).collect();
+    let mut step = 0;
+    let (mut g_w1, mut g_b1) = (vec![0.0f32; h * d], vec![0.0f32; h]);
+    let (mut g_w2, mut g_b2) = (vec![0.0f32; k * h], vec![0.0f32; k]);
+    let (mut hid, mut out, mut dh) = (vec![0.0f32; h], vec![0.0f32; k], vec![0.0f32; h]);
+    for _ in 0..t.epochs {
+        for i in (1..order.len()).rev() {
+            order.swap(i, (rng.next() % (i as u64 + 1)) as usize);
+        }
+        for batch in order.chunks(t.batch.max(1)) {
+            g_w1.fill(0.0);
+            g_b1.fill(0.0);
+            g_w2.fill(0.0);
+            g_b2.fill(0.0);
+            for &s in batch {
+                let xv = &xs[s];
+                for u in 0..h {
+                    let z: f32 = b1[u]
+                        + w1[u * d..(u + 1) * d].iter().zip(xv).map(|(a, b)| a * b).sum::<f32>();
+                    hid[u] = z.tanh();
+                }
+                for c in 0..k {
+                    out[c] = b2[c]
+                        + w2[c * h..(c + 1) * h].iter().zip(&hid).map(|(a, b)| a * b).sum::<f32>();
+                }
+                softmax(&mut out);
+                out[y[s]] -= 1.0; // dL/dz of the cross-entropy
+                dh.fill(0.0);
+                for c in 0..k {
+                    g_b2[c] += out[c];
+                    for u in 0..h {
+                        g_w2[c * h + u] += out[c] * hid[u];
+                        dh[u] += out[c] * w2[c * h + u];
+                    }
+                }
+                for u in 0..h {
+                    let gz = dh[u] * (1.0 - hid[u] * hid[u]);
+                    g_b1[u] += gz;
+                    for (g, xi) in g_w1[u * d..(u + 1) * d].iter_mut().zip(xv) {
+                        *g += gz * xi;
+                    }
+                }
+            }
+            let bn = batch.len() as f32;
+            for (g, w) in g_w1.iter_mut().zip(&w1) {
+                *g = *g / bn + t.weight_decay * w;
+            }
+            for (g, w) in g_w2.iter_mut().zip(&w2) {
+                *g = *g / bn + t.weight_decay * w;
+            }
+            g_b1.iter_mut().for_each(|g| *g /= bn);
+            g_b2.iter_mut().for_each(|g| *g /= bn);
+            step += 1;
+            o_w1.step(&mut w1, &g_w1, t.learning_rate, step);
+            o_b1.step(&mut b1, &g_b1, t.learning_rate, step);
+            o_w2.step(&mut w2, &g_w2, t.learning_rate, step);
+            o_b2.step(&mut b2, &g_b2, t.learning_rate, step);
+        }
+    }
+    let rows = |w: &[f32], cols: usize| w.chunks(cols).map(|r| r.to_vec()).collect();
+    Net {
+        hidden: Layer { weights: rows(&w1, d), bias: b1 },
+        output: Layer { weights: rows(&w2, h), bias: b2 },
+    }
+}
+
 impl Model {
     /// Trains on feature vectors `x` with labels `y` (indices into `classes`).
     pub fn train(
@@ -174,106 +274,25 @@ impl Model {
             .iter()
             .map(|v| v.iter().zip(&mean).zip(&scale).map(|((a, m), s)| (a - m) / s).collect())
             .collect();
-        let h = t.hidden_units;
-        let mut rng = Rng(t.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
-        let (a1, a2) = ((6.0 / (d + h) as f32).sqrt(), (6.0 / (h + k) as f32).sqrt());
-        let mut w1: Vec<f32> = (0..h * d).map(|_| a1 * rng.sym()).collect();
-        let mut b1 = vec![0.0f32; h];
-        let mut w2: Vec<f32> = (0..k * h).map(|_| a2 * rng.sym()).collect();
-        let mut b2 = vec![0.0f32; k];
-        let (mut o_w1, mut o_b1, mut o_w2, mut o_b2) =
-            (Adam::new(h * d), Adam::new(h), Adam::new(k * h), Adam::new(k));
-        let mut order: Vec<usize> = (0..xs.len()).collect();
-        let mut step = 0;
-        let (mut g_w1, mut g_b1) = (vec![0.0f32; h * d], vec![0.0f32; h]);
-        let (mut g_w2, mut g_b2) = (vec![0.0f32; k * h], vec![0.0f32; k]);
-        let (mut hid, mut out, mut dh) = (vec![0.0f32; h], vec![0.0f32; k], vec![0.0f32; h]);
-        for _ in 0..t.epochs {
-            for i in (1..order.len()).rev() {
-                order.swap(i, (rng.next() % (i as u64 + 1)) as usize);
-            }
-            for batch in order.chunks(t.batch.max(1)) {
-                g_w1.fill(0.0);
-                g_b1.fill(0.0);
-                g_w2.fill(0.0);
-                g_b2.fill(0.0);
-                for &s in batch {
-                    let xv = &xs[s];
-                    for u in 0..h {
-                        let z: f32 = b1[u]
-                            + w1[u * d..(u + 1) * d]
-                                .iter()
-                                .zip(xv)
-                                .map(|(a, b)| a * b)
-                                .sum::<f32>();
-                        hid[u] = z.tanh();
-                    }
-                    for c in 0..k {
-                        out[c] = b2[c]
-                            + w2[c * h..(c + 1) * h]
-                                .iter()
-                                .zip(&hid)
-                                .map(|(a, b)| a * b)
-                                .sum::<f32>();
-                    }
-                    softmax(&mut out);
-                    out[y[s]] -= 1.0; // dL/dz of the cross-entropy
-                    dh.fill(0.0);
-                    for c in 0..k {
-                        g_b2[c] += out[c];
-                        for u in 0..h {
-                            g_w2[c * h + u] += out[c] * hid[u];
-                            dh[u] += out[c] * w2[c * h + u];
-                        }
-                    }
-                    for u in 0..h {
-                        let gz = dh[u] * (1.0 - hid[u] * hid[u]);
-                        g_b1[u] += gz;
-                        for (g, xi) in g_w1[u * d..(u + 1) * d].iter_mut().zip(xv) {
-                            *g += gz * xi;
-                        }
-                    }
-                }
-                let bn = batch.len() as f32;
-                for (g, w) in g_w1.iter_mut().zip(&w1) {
-                    *g = *g / bn + t.weight_decay * w;
-                }
-                for (g, w) in g_w2.iter_mut().zip(&w2) {
-                    *g = *g / bn + t.weight_decay * w;
-                }
-                g_b1.iter_mut().for_each(|g| *g /= bn);
-                g_b2.iter_mut().for_each(|g| *g /= bn);
-                step += 1;
-                o_w1.step(&mut w1, &g_w1, t.learning_rate, step);
-                o_b1.step(&mut b1, &g_b1, t.learning_rate, step);
-                o_w2.step(&mut w2, &g_w2, t.learning_rate, step);
-                o_b2.step(&mut b2, &g_b2, t.learning_rate, step);
-            }
-        }
-        let rows = |w: &[f32], cols: usize| w.chunks(cols).map(|r| r.to_vec()).collect();
-        Ok(Self {
-            format: FORMAT.into(),
-            features,
-            classes,
-            mean,
-            scale,
-            hidden: Layer { weights: rows(&w1, d), bias: b1 },
-            output: Layer { weights: rows(&w2, h), bias: b2 },
-            training: t,
-        })
+        let members = (0..t.members.max(1))
+            .map(|i| train_net(&xs, y, d, k, &t, t.seed.wrapping_add(i as u64)))
+            .collect();
+        Ok(Self { format: FORMAT.into(), features, classes, mean, scale, members, training: t })
     }
 
     /// Class probabilities of one feature vector (in `classes` order).
     pub fn predict(&self, x: &[f32]) -> Vec<f32> {
         let xs: Vec<f32> =
             x.iter().zip(&self.mean).zip(&self.scale).map(|((a, m), s)| (a - m) / s).collect();
-        let mut h = Vec::new();
-        self.hidden.forward(&xs, &mut h);
-        h.iter_mut().for_each(|v| *v = v.tanh());
-        let mut out = Vec::new();
-        self.output.forward(&h, &mut out);
-        softmax(&mut out);
-        out
+        let mut p = vec![0.0f32; self.classes.len()];
+        for m in &self.members {
+            for (a, b) in p.iter_mut().zip(m.predict(&xs)) {
+                *a += b;
+            }
+        }
+        let n = self.members.len().max(1) as f32;
+        p.iter_mut().for_each(|v| *v /= n);
+        p
     }
 
     /// Index of the `none` class, if the model has one.
@@ -301,14 +320,19 @@ impl Model {
         if m.format != FORMAT {
             bail!("{}: model format `{}`, this aim reads `{FORMAT}`", path.display(), m.format);
         }
-        let (d, h, k) = (m.features.len(), m.hidden.bias.len(), m.classes.len());
+        let (d, k) = (m.features.len(), m.classes.len());
+        let h = m.members.first().map_or(0, |n| n.hidden.bias.len());
         let ok = m.mean.len() == d
             && m.scale.len() == d
-            && m.hidden.weights.len() == h
-            && m.hidden.weights.iter().all(|r| r.len() == d)
-            && m.output.bias.len() == k
-            && m.output.weights.len() == k
-            && m.output.weights.iter().all(|r| r.len() == h)
+            && !m.members.is_empty()
+            && m.members.iter().all(|n| {
+                let h = n.hidden.bias.len();
+                n.hidden.weights.len() == h
+                    && n.hidden.weights.iter().all(|r| r.len() == d)
+                    && n.output.bias.len() == k
+                    && n.output.weights.len() == k
+                    && n.output.weights.iter().all(|r| r.len() == h)
+            })
             && k >= 2;
         if !ok {
             bail!(
