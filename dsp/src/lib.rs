@@ -16,6 +16,7 @@
 //! Stages (one module each): [`frontend`] (TDM words → Q31 → DC removal → Q15 with a block
 //! exponent), [`gcc_phat`] (PHAT cross spectra, lag search, sub-sample refinement),
 //! [`doa`] (least-squares direction), [`bpf`] (decimation, long spectrum, peak groups),
+//! [`features`] (drone-identification features: log-mel, MFCC, BPF harmonics),
 //! [`pipeline`] (the streaming glue).
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![forbid(unsafe_code)]
@@ -25,6 +26,7 @@ pub mod bpf;
 mod config;
 pub mod doa;
 mod error;
+pub mod features;
 pub mod frontend;
 pub mod gcc_phat;
 mod geometry;

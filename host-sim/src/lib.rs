@@ -22,9 +22,11 @@ use rand::{rngs::StdRng, Rng, SeedableRng};
 
 pub mod air;
 pub mod array;
+pub mod drones;
 pub mod eval;
 pub mod filter;
 pub mod flight;
+pub mod iddata;
 pub mod noise;
 pub mod obstacle;
 pub mod path;

@@ -22,6 +22,8 @@ enum Command {
     /// Run a suite of scenario families × seeds (both filters, all cores) and tabulate the
     /// errors as mean ± sd over seeds.
     Bench(cmd::bench::Args),
+    /// Write a labelled dataset of simulated drone and no-drone recordings for `aim id`.
+    IdDataset(cmd::id_dataset::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -30,6 +32,7 @@ fn main() -> std::process::ExitCode {
         Command::Analyze(args) => cmd::analyze::run(args),
         Command::Fly(args) => cmd::fly::run(args),
         Command::Bench(args) => cmd::bench::run(args),
+        Command::IdDataset(args) => cmd::id_dataset::run(args),
     };
     aim_tracker::exit::exit_code(result)
 }

@@ -13,6 +13,7 @@
 //! - [`status`]: per-array link and board counters, the status line of `aim track`;
 //! - [`serve`]: the live map in the browser (`--serve`);
 //! - [`profile`], [`site`]: drone profiles and site files (TOML);
+//! - [`id`]: is a drone in a recording, and which type (`aim id`);
 //! - [`output`]: fixes to other systems (MAVLink to an autopilot, in the site's NED frame).
 #![warn(missing_docs)]
 
@@ -22,6 +23,7 @@ pub mod doppler;
 pub mod dynamics;
 pub mod exit;
 pub mod filter;
+pub mod id;
 pub mod intake;
 pub mod iqr;
 pub mod linalg;

@@ -23,6 +23,8 @@ enum Command {
     Track(cmd::track::Args),
     /// Publish an array's frames from its serial port on the Zenoh bus.
     Gateway(cmd::gateway::Args),
+    /// Is a drone in a recording, and which type: train, evaluate, classify.
+    Id(cmd::id::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -32,6 +34,7 @@ fn main() -> std::process::ExitCode {
         Command::Replay(args) => cmd::replay::run(args),
         Command::Track(args) => cmd::track::run(args),
         Command::Gateway(args) => cmd::gateway::run(args),
+        Command::Id(args) => cmd::id::run(args),
     };
     aim_tracker::exit::exit_code(result)
 }

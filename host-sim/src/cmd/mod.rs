@@ -2,4 +2,5 @@
 pub mod analyze;
 pub mod bench;
 pub mod fly;
+pub mod id_dataset;
 pub mod simulate;

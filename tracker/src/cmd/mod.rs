@@ -2,6 +2,7 @@
 pub mod bus;
 pub mod frames;
 pub mod gateway;
+pub mod id;
 pub mod record;
 pub mod replay;
 pub mod serve;

@@ -1,0 +1,292 @@
+//! `aim id train | eval | classify`: is a drone in a recording, and which type
+//! ([`aim_tracker::id`]).
+//!
+//! - `aim id train DIR --out MODEL`: DIR holds one folder per class of WAV recordings (mono or
+//!   multichannel, 16 or 48 kHz, any length from 0.25 s; a class `none` for no drone);
+//!   writes the model (JSON).
+//! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--json]`: the confusion matrix,
+//!   per-class precision and recall, the type accuracy among drone clips and the detection ROC
+//!   (drone probability against `none`) with the threshold at the stated false-alarm rate.
+//! - `aim id classify WAV... --model MODEL`: one JSON line per file:
+//!   `{"file":..,"class":..,"probability":..,"drone_probability":..,"probabilities":{..}}`.
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use aim_dsp::features::Extractor;
+use aim_tracker::id::{audio, clip, dataset, metrics, model, NONE_CLASS};
+use anyhow::{bail, Context as _};
+
+/// Arguments of `aim id`.
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    command: IdCommand,
+}
+
+#[derive(clap::Subcommand)]
+enum IdCommand {
+    /// Train a model on a folder of labelled recordings (DIR/<class>/*.wav).
+    Train(TrainArgs),
+    /// Evaluate a model on a folder of labelled recordings.
+    Eval(EvalArgs),
+    /// Classify recordings: one JSON line per file.
+    Classify(ClassifyArgs),
+}
+
+#[derive(clap::Args)]
+struct TrainArgs {
+    /// Dataset folder: one subfolder of WAV files per class (`none`: no drone).
+    dir: PathBuf,
+    /// Model file to write (JSON).
+    #[arg(long)]
+    out: PathBuf,
+    /// Passes over the training set.
+    #[arg(long, default_value_t = model::Training::default().epochs)]
+    epochs: usize,
+    /// Hidden units.
+    #[arg(long, default_value_t = model::Training::default().hidden_units)]
+    hidden: usize,
+    /// Networks in the ensemble (their probabilities averaged).
+    #[arg(long, default_value_t = model::Training::default().members)]
+    members: usize,
+    /// Seed of the initial weights and batch order.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+#[derive(clap::Args)]
+struct EvalArgs {
+    /// Dataset folder: one subfolder of WAV files per class, classes known to the model.
+    dir: PathBuf,
+    /// Model file.
+    #[arg(long)]
+    model: PathBuf,
+    /// False-alarm rate of the reported detection threshold.
+    #[arg(long, default_value_t = 0.01)]
+    false_alarm: f64,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+struct ClassifyArgs {
+    /// Recordings (WAV, mono or multichannel, 16 or 48 kHz).
+    #[arg(required = true)]
+    wav: Vec<PathBuf>,
+    /// Model file.
+    #[arg(long)]
+    model: PathBuf,
+}
+
+/// Runs `aim id`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.command {
+        IdCommand::Train(a) => train(a),
+        IdCommand::Eval(a) => eval(a),
+        IdCommand::Classify(a) => classify(a),
+    }
+}
+
+fn features_of(path: &Path, ex: &Extractor) -> anyhow::Result<Vec<f32>> {
+    let x = audio::read_mono_16k(path)?;
+    Ok(clip::features(&x, ex))
+}
+
+/// Feature vectors and labels of every clip of `classes`, labels from `index`.
+fn load(
+    classes: &[dataset::Class],
+    index: impl Fn(&str) -> anyhow::Result<usize>,
+) -> anyhow::Result<(Vec<Vec<f32>>, Vec<usize>)> {
+    let ex = Extractor::new();
+    let (mut x, mut y) = (Vec::new(), Vec::new());
+    for c in classes {
+        let label = index(&c.name)?;
+        for f in &c.files {
+            x.push(features_of(f, &ex)?);
+            y.push(label);
+        }
+    }
+    Ok((x, y))
+}
+
+fn argmax(p: &[f32]) -> usize {
+    (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap_or(0)
+}
+
+fn train(a: TrainArgs) -> anyhow::Result<()> {
+    let classes = dataset::scan(&a.dir)?;
+    if classes.len() < 2 {
+        bail!("{}: one class ({}); training needs at least two", a.dir.display(), classes[0].name);
+    }
+    let names: Vec<String> = classes.iter().map(|c| c.name.clone()).collect();
+    let (x, y) = load(&classes, |n| Ok(names.iter().position(|c| c == n).unwrap_or(0)))?;
+    let t = model::Training {
+        epochs: a.epochs,
+        hidden_units: a.hidden.max(1),
+        members: a.members.max(1),
+        seed: a.seed,
+        ..model::Training::default()
+    };
+    let m = model::Model::train(clip::names(), names.clone(), &x, &y, t)?;
+    m.save(&a.out)?;
+    let right = x.iter().zip(&y).filter(|(v, &c)| argmax(&m.predict(v)) == c).count();
+    let mut out = std::io::stdout().lock();
+    for c in &classes {
+        writeln!(out, "{:<20} {} clips", c.name, c.files.len())?;
+    }
+    writeln!(
+        out,
+        "trained on {} clips, {} classes; training accuracy {:.1} %; model written to {}",
+        x.len(),
+        names.len(),
+        100.0 * right as f64 / x.len() as f64,
+        a.out.display()
+    )?;
+    Ok(())
+}
+
+fn eval(a: EvalArgs) -> anyhow::Result<()> {
+    if !(0.0..=1.0).contains(&a.false_alarm) {
+        bail!("--false-alarm must be in 0..=1, got {}", a.false_alarm);
+    }
+    let m = model::Model::load(&a.model)?;
+    let classes = dataset::scan(&a.dir)?;
+    let (x, y) = load(&classes, |n| {
+        m.classes.iter().position(|c| c == n).with_context(|| {
+            format!(
+                "{}: class `{n}` is not one the model knows ({})",
+                a.dir.join(n).display(),
+                m.classes.join(", ")
+            )
+        })
+    })?;
+    let none = m.none_index();
+    let mut confusion = metrics::Confusion::new(m.classes.clone());
+    let (mut pos, mut neg) = (Vec::new(), Vec::new());
+    let (mut type_right, mut type_n) = (0usize, 0usize);
+    for (v, &truth) in x.iter().zip(&y) {
+        let p = m.predict(v);
+        confusion.add(truth, argmax(&p));
+        let score = f64::from(m.drone_probability(&p));
+        if Some(truth) == none {
+            neg.push(score);
+        } else {
+            pos.push(score);
+            // Type among the drone classes only.
+            let best =
+                (0..p.len()).filter(|&c| Some(c) != none).max_by(|&a, &b| p[a].total_cmp(&p[b]));
+            type_n += 1;
+            type_right += usize::from(best == Some(truth));
+        }
+    }
+    let roc = (!pos.is_empty() && !neg.is_empty()).then(|| metrics::roc(&pos, &neg));
+    let op = roc.as_ref().and_then(|r| metrics::at_false_alarm(r, a.false_alarm));
+    let type_accuracy = (type_n > 0).then(|| type_right as f64 / type_n as f64);
+    let mut out = std::io::stdout().lock();
+    if a.json {
+        let per_class: Vec<_> = (0..m.classes.len())
+            .map(|c| {
+                serde_json::json!({
+                    "class": m.classes[c],
+                    "clips": confusion.counts[c].iter().sum::<usize>(),
+                    "precision": confusion.precision(c),
+                    "recall": confusion.recall(c),
+                })
+            })
+            .collect();
+        let j = serde_json::json!({
+            "clips": x.len(),
+            "accuracy": confusion.accuracy(),
+            "type_accuracy": type_accuracy,
+            "confusion": confusion,
+            "per_class": per_class,
+            "detection": op.map(|p| serde_json::json!({
+                "false_alarm_target": a.false_alarm,
+                "threshold": p.threshold,
+                "detection": p.detection,
+                "false_alarm": p.false_alarm,
+                "auc": roc.as_deref().map(metrics::auc),
+                "drone_clips": pos.len(),
+                "none_clips": neg.len(),
+            })),
+        });
+        writeln!(out, "{j}")?;
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "{} clips; accuracy (all classes) {:.2} %",
+        x.len(),
+        100.0 * confusion.accuracy()
+    )?;
+    if let Some(t) = type_accuracy {
+        writeln!(
+            out,
+            "type accuracy among {type_n} drone clips (drone classes only): {:.2} %",
+            100.0 * t
+        )?;
+    }
+    writeln!(out, "\nconfusion (rows: true class, columns: predicted, in class order)")?;
+    for (c, row) in confusion.counts.iter().enumerate() {
+        let cells: Vec<String> = row.iter().map(|n| format!("{n:>5}")).collect();
+        writeln!(out, "{:<20}{}", m.classes[c], cells.join(""))?;
+    }
+    writeln!(out, "\n{:<20}{:>6}{:>11}{:>8}", "class", "clips", "precision", "recall")?;
+    let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.1}%", 100.0 * v));
+    for c in 0..m.classes.len() {
+        let n: usize = confusion.counts[c].iter().sum();
+        writeln!(
+            out,
+            "{:<20}{:>6}{:>11}{:>8}",
+            m.classes[c],
+            n,
+            pct(confusion.precision(c)),
+            pct(confusion.recall(c))
+        )?;
+    }
+    match (&roc, op) {
+        (Some(r), Some(p)) => {
+            writeln!(
+                out,
+                "\ndetection ({} drone / {} {NONE_CLASS} clips): AUC {:.4}; at <= {:.2} % false alarms: \
+                 threshold {:.4}, detection {:.2} %, false alarms {:.2} %",
+                pos.len(),
+                neg.len(),
+                metrics::auc(r),
+                100.0 * a.false_alarm,
+                p.threshold,
+                100.0 * p.detection,
+                100.0 * p.false_alarm
+            )?;
+            writeln!(out, "ROC (false alarm, detection):")?;
+            let step = (r.len() / 20).max(1);
+            for p in r.iter().step_by(step) {
+                writeln!(out, "  {:.4} {:.4}", p.false_alarm, p.detection)?;
+            }
+        }
+        _ => writeln!(out, "\nno detection ROC: needs both `{NONE_CLASS}` and drone clips")?,
+    }
+    Ok(())
+}
+
+fn classify(a: ClassifyArgs) -> anyhow::Result<()> {
+    let m = model::Model::load(&a.model)?;
+    let ex = Extractor::new();
+    let mut out = std::io::stdout().lock();
+    for f in &a.wav {
+        let p = m.predict(&features_of(f, &ex)?);
+        let best = argmax(&p);
+        let probabilities: serde_json::Map<String, serde_json::Value> =
+            m.classes.iter().zip(&p).map(|(c, v)| (c.clone(), serde_json::json!(v))).collect();
+        let j = serde_json::json!({
+            "file": f.display().to_string(),
+            "class": m.classes[best],
+            "probability": p[best],
+            "drone_probability": m.drone_probability(&p),
+            "probabilities": probabilities,
+        });
+        writeln!(out, "{j}")?;
+    }
+    Ok(())
+}
