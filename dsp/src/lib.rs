@@ -15,13 +15,14 @@
 //!
 //! Stages (one module each): [`frontend`] (TDM words → Q31 → DC removal → Q15 with a block
 //! exponent), [`gcc_phat`] (PHAT cross spectra, lag search, sub-sample refinement),
-//! [`doa`] (least-squares direction), [`bpf`] (decimation, long spectrum, peak groups),
+//! [`doa`] (least-squares direction), [`bpf`] (decimation, long spectrum), [`comb`] (whitening, rotor combs, detection),
 //! [`pipeline`] (the streaming glue).
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod bpf;
+pub mod comb;
 mod config;
 pub mod doa;
 mod error;

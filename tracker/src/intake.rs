@@ -58,10 +58,11 @@ impl FrameConverter {
             Body::Peaks(p) => Some(Input::Spectrum(Spectrum {
                 t: time(p.span_samples),
                 array_id: u16::from(id),
+                // "No rotor signature": no groups (the chip's detection decision stands).
                 peaks: p
                     .peaks
                     .iter()
-                    .filter(|q| q.freq_hz() > 0.0)
+                    .filter(|q| p.is_rotor() && q.freq_hz() > 0.0)
                     .map(|q| BpfPeak {
                         hz: f64::from(q.freq_hz()),
                         amplitude: 10f64.powf(f64::from(q.amplitude_db()) / 20.0),
@@ -99,11 +100,23 @@ mod tests {
         assert!((b.residual - 0.25).abs() < 1e-6 && (b.quality - 0.8).abs() < 0.004);
         let mut peaks = heapless::Vec::new();
         peaks.push(Peak::new(328.25, -20.0, 1.0)).unwrap();
-        let p = Peaks { span_samples: 0, bpf_chz: 32825, peaks };
-        let Some(Input::Spectrum(s)) = c.convert(&Frame { header, body: Body::Peaks(p) }) else {
+        let p = Peaks {
+            span_samples: 0,
+            bpf_chz: 32825,
+            peaks,
+            detection: aim_wire::Detection::Rotor,
+            quality: [200].into_iter().collect(),
+        };
+        let Some(Input::Spectrum(s)) = c.convert(&Frame { header, body: Body::Peaks(p.clone()) })
+        else {
             panic!()
         };
         assert!((s.peaks[0].hz - 328.25).abs() < 1e-4 && (s.peaks[0].amplitude - 0.1).abs() < 1e-6);
+        let none = Peaks { detection: aim_wire::Detection::NoRotor, ..p.clone() };
+        let Some(Input::Spectrum(s)) = c.convert(&Frame { header, body: Body::Peaks(none) }) else {
+            panic!()
+        };
+        assert!(s.peaks.is_empty(), "no rotor signature carries no groups");
         let stranger = Frame { header: Header { array_id: 9, ..header }, body: Body::Doa(doa) };
         assert!(c.convert(&stranger).is_none() && c.unknown_array_frames == 1);
     }

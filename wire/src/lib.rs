@@ -99,7 +99,8 @@ pub use crc32::crc32;
 pub use deframe::{decode, DecodeError, Deframer, Feed, LinkStats, DEFAULT_CAPACITY};
 pub use encode::{encode, EncodeError, Encoder};
 pub use frame::{
-    reserved, Body, Doa, Frame, Header, Health, Hello, Kind, Peak, Peaks, MAX_MICS, MAX_PEAKS,
+    reserved, Body, Detection, Doa, Frame, Header, Health, Hello, Kind, Peak, Peaks, MAX_MICS,
+    MAX_PEAKS,
 };
 
 /// First byte of every raw frame.

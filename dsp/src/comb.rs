@@ -1,0 +1,376 @@
+//! Rotor-signature detection in the long mono spectrum: a noise floor that follows the
+//! spectrum's tilt, harmonic combs scored on the whitened spectrum, the blade-passing line
+//! chosen among a comb's sub-multiples and multiples, a detection test, and continuity over
+//! analyses.
+//!
+//! 1. **Floor.** The band is cut into blocks of [`FLOOR_BLOCK`] bins (62.5 Hz). Per block the
+//!    mean magnitude, then the mean of the bins below twice that mean (tonal lines and their
+//!    Hann skirts are left out); the floor at a bin is interpolated linearly between block
+//!    centres. Whitened level `w(k) = |X(k)| / floor(k)`: noise alone is Rayleigh with mean ≈ 1.1
+//!    (`P(w > 3)` ≈ 0.3 %, `P(w > 5)` ≈ 10⁻⁸), whatever the tilt of the spectrum.
+//! 2. **Candidates.** Local maxima of `w` at or above `Config::peak_floor_ratio` inside the BPF
+//!    search range, the strongest [`MAX_CANDIDATES`].
+//! 3. **Blade or shaft line.** A rotor's spectrum has lines at multiples of its shaft rate; the
+//!    blade-passing ones (multiples of the blade count) are the strong ones. For a candidate
+//!    `f` with line strengths `L(h)` (whitened level of the line nearest `h·f`, 0 when there is
+//!    none) the multiples `m·f` (m = 2, 3) are tested: when the lines at multiples of `m` carry
+//!    the comb and the others are weak (mean below [`SHAFT_RATIO`] of theirs), `f` was a shaft
+//!    line and `m·f` is the BPF. Then the sub-multiples `f/d` (d = 2, 3): when the lines
+//!    between `f`'s harmonics are as strong as [`SHAFT_RATIO`] of `f`'s own, `f` is a harmonic
+//!    of a lower fundamental: `f/d` if that is in the search range, else the candidate is
+//!    dropped (engines, mains hum, fans whose fundamental lies below the rotor range).
+//! 4. **Comb score.** Over harmonics `h = 1..=Config::harmonics` of the resolved fundamental:
+//!    a line is found when the largest `w` within ±r bins of `h·f` is a local maximum of at
+//!    least [`LINE_RATIO`] (r = 1 bin plus 0.2 % of the line's frequency, for rotor-speed
+//!    wander within the window). Score = Σ min(w, [`LINE_CAP`]) over the found lines;
+//!    harmonicity = found / expected (harmonics below 3.8 kHz); frequency = amplitude-weighted
+//!    mean of the refined `f_h / h`.
+//! 5. **Detection.** A group passes when it has at least [`MIN_LINES`] lines (or all expected,
+//!    if fewer), harmonicity ≥ [`MIN_HARMONICITY`] and quality
+//!    `q = harmonicity · score / (score + QUALITY_SCALE)` ≥ `Config::bpf_min_quality`.
+//! 6. **Continuity.** A passing group is reported only if a passing group of the previous
+//!    analysis lies within `2 bins + Config::bpf_max_rate_per_s · hop · f` of it (rotor speeds
+//!    change at most that fast): a source must hold a comb for two analyses (0.77 s) before it
+//!    is called a rotor. When no group is reported, the `Peaks` output says "no rotor
+//!    signature" and carries no BPF.
+
+use crate::bpf::refine_peak;
+use crate::{Config, Peak, Peaks, MAX_HARMONICS};
+
+/// Bins per block of the noise-floor estimate.
+pub const FLOOR_BLOCK: usize = 32;
+/// A harmonic line must stand this many times above the floor.
+pub const LINE_RATIO: f32 = 3.0;
+/// Whitened level at which a line's contribution to the score saturates.
+pub const LINE_CAP: f32 = 40.0;
+/// Fewest lines of a detected group (fewer only if fewer harmonics lie in the band).
+pub const MIN_LINES: u32 = 3;
+/// Lowest harmonicity of a detected group.
+pub const MIN_HARMONICITY: f32 = 0.5;
+/// Score at which the quality reaches half the harmonicity.
+pub const QUALITY_SCALE: f32 = 30.0;
+/// Shaft-line test: lines between the blade lines weaker than this fraction of them.
+pub const SHAFT_RATIO: f32 = 0.5;
+/// Most fundamental candidates examined per analysis.
+pub const MAX_CANDIDATES: usize = 10;
+/// Harmonics of a candidate examined for the shaft/blade decision.
+const CHECK_HARMONICS: usize = 12;
+
+/// Groups that passed the detection test in the previous analysis (continuity).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct History {
+    hz: [f32; 4],
+    count: usize,
+}
+
+impl History {
+    /// No previous analysis.
+    pub const fn new() -> Self {
+        Self { hz: [0.0; 4], count: 0 }
+    }
+
+    fn continues(&self, hz: f32, tolerance_hz: f32) -> bool {
+        self.hz[..self.count].iter().any(|&p| libm::fabsf(p - hz) <= tolerance_hz)
+    }
+}
+
+/// Writes the whitened level `|X(k)| / floor(k)` of `mags[k]` into `white[k]` for `lo ≤ k < top`
+/// (0 elsewhere).
+pub fn whiten(mags: &[f32], white: &mut [f32], lo: usize, top: usize) {
+    let blocks = (top - lo) / FLOOR_BLOCK;
+    let mut floors = [0.0f32; 64];
+    let blocks = blocks.min(floors.len());
+    for (b, f) in floors[..blocks].iter_mut().enumerate() {
+        let seg = &mags[lo + b * FLOOR_BLOCK..lo + (b + 1) * FLOOR_BLOCK];
+        let mean = seg.iter().sum::<f32>() * (1.0 / FLOOR_BLOCK as f32);
+        let cut = 2.0 * mean;
+        let (mut s, mut n) = (0.0f32, 0u32);
+        for &m in seg {
+            if m <= cut {
+                s += m;
+                n += 1;
+            }
+        }
+        *f = if n > 0 { s / n as f32 } else { mean };
+    }
+    let tiny = f32::MIN_POSITIVE * 1e6;
+    let end = lo + blocks * FLOOR_BLOCK;
+    white[..lo].fill(0.0);
+    white[end..].fill(0.0);
+    let half = FLOOR_BLOCK / 2;
+    for b in 0..blocks {
+        // Bins from this block's centre to the next one's: linear between the two floors.
+        let f0 = floors[b];
+        let f1 = if b + 1 < blocks { floors[b + 1] } else { f0 };
+        let start = if b == 0 { lo } else { lo + b * FLOOR_BLOCK + half };
+        let stop = if b + 1 < blocks { lo + (b + 1) * FLOOR_BLOCK + half } else { end };
+        let c0 = (lo + b * FLOOR_BLOCK + half) as f32;
+        let slope = (f1 - f0) * (1.0 / FLOOR_BLOCK as f32);
+        for k in start..stop {
+            let floor = (f0 + slope * (k as f32 - c0)).max(f0.min(f1)).max(tiny);
+            white[k] = mags[k] / floor;
+        }
+    }
+}
+
+/// The spectrum an analysis works on: magnitudes, whitened levels and the band.
+pub struct Spectrum<'a> {
+    /// Magnitudes, bins of `bin_hz`.
+    pub mags: &'a [f32],
+    /// Whitened levels ([`whiten`]).
+    pub white: &'a [f32],
+    /// Bin spacing, Hz.
+    pub bin_hz: f32,
+    /// One past the highest bin analysed.
+    pub top: usize,
+}
+
+/// A line near a bin position: the bin of the largest whitened level within ±r, if it is a
+/// local maximum of at least [`LINE_RATIO`].
+#[derive(Debug, Clone, Copy)]
+struct Line {
+    bin: usize,
+    white: f32,
+}
+
+impl Spectrum<'_> {
+    fn search_radius(&self, centre: f32) -> usize {
+        1 + (centre * 0.002) as usize
+    }
+
+    fn line(&self, centre: f32) -> Option<Line> {
+        let r = self.search_radius(centre);
+        let c = (centre + 0.5) as usize;
+        if c < r + 1 || c + r + 2 > self.top {
+            return None;
+        }
+        let w = self.white;
+        let mut best = c - r;
+        for i in c - r + 1..=c + r {
+            if w[i] > w[best] {
+                best = i;
+            }
+        }
+        let v = w[best];
+        (v >= LINE_RATIO && v >= w[best - 1] && v >= w[best + 1])
+            .then_some(Line { bin: best, white: v })
+    }
+
+    fn strength(&self, centre: f32) -> f32 {
+        self.line(centre).map_or(0.0, |l| l.white)
+    }
+
+    /// Whether a comb at `bin` lies in the band for harmonic `h`.
+    fn in_band(&self, centre: f32) -> bool {
+        centre + self.search_radius(centre) as f32 + 2.5 < self.top as f32
+    }
+
+    /// The blade-passing fundamental (bins) of a candidate line at `bin`, or `None` when the
+    /// comb's fundamental lies below `min_bin`.
+    fn resolve(&self, bin: f32, min_bin: f32, max_bin: f32) -> Option<f32> {
+        let mut l = [0.0f32; CHECK_HARMONICS + 1];
+        let mut n = 0;
+        for (h, slot) in l.iter_mut().enumerate().skip(1) {
+            let c = h as f32 * bin;
+            if !self.in_band(c) {
+                break;
+            }
+            *slot = self.strength(c);
+            n = h;
+        }
+        // Up: a shaft line whose multiple m carries the comb.
+        let mut best: Option<(f32, usize)> = None;
+        for m in 2..=3usize {
+            if m as f32 * bin > max_bin || n < 2 * m {
+                continue;
+            }
+            let (mut a, mut na, mut b, mut nb) = (0.0f32, 0u32, 0.0f32, 0u32);
+            for (h, &s) in l.iter().enumerate().take(n + 1).skip(1) {
+                if h % m == 0 {
+                    a += s;
+                    na += 1;
+                } else {
+                    b += s;
+                    nb += 1;
+                }
+            }
+            let (a, b) = (a / na.max(1) as f32, b / nb.max(1) as f32);
+            if a >= LINE_RATIO && b < SHAFT_RATIO * a {
+                let ratio = b / a;
+                if best.is_none_or(|(r, _)| ratio < r) {
+                    best = Some((ratio, m));
+                }
+            }
+        }
+        if let Some((_, m)) = best {
+            let c = m as f32 * bin;
+            return Some(self.line(c).map_or(c, |line| refine_peak(self.mags, line.bin).0));
+        }
+        // Down: a harmonic of a lower fundamental.
+        let own = {
+            let k = n.min(6);
+            l[1..=k].iter().sum::<f32>() / k.max(1) as f32
+        };
+        for d in [2usize, 3] {
+            let sub = bin / d as f32;
+            let (mut s, mut ns) = (0.0f32, 0u32);
+            for j in 1..=3 * d {
+                if j % d == 0 {
+                    continue;
+                }
+                let c = j as f32 * sub;
+                if !self.in_band(c) {
+                    break;
+                }
+                s += self.strength(c);
+                ns += 1;
+            }
+            if ns > 0 && s / ns as f32 >= SHAFT_RATIO * own {
+                return (sub >= min_bin).then_some(sub);
+            }
+        }
+        Some(bin)
+    }
+
+    /// Scores the comb at `bin` over `harmonics` harmonics.
+    fn comb(&self, bin: f32, harmonics: usize) -> Group {
+        let (mut num, mut den, mut score, mut found, mut expected) =
+            (0.0f32, 0.0f32, 0.0f32, 0u32, 0u32);
+        let mut amplitude = 0.0f32;
+        for h in 1..=harmonics.min(MAX_HARMONICS) {
+            let centre = h as f32 * bin;
+            if !self.in_band(centre) {
+                break;
+            }
+            expected += 1;
+            let Some(line) = self.line(centre) else { continue };
+            let (bh, ah) = refine_peak(self.mags, line.bin);
+            if libm::fabsf(bh - centre) > self.search_radius(centre) as f32 + 0.5 {
+                continue;
+            }
+            if h == 1 {
+                amplitude = ah;
+            }
+            num += ah * bh / h as f32;
+            den += ah;
+            score += line.white.min(LINE_CAP);
+            found += 1;
+        }
+        let hz = if den > 0.0 { num / den * self.bin_hz } else { bin * self.bin_hz };
+        if amplitude == 0.0 && bin >= 1.0 {
+            amplitude = refine_peak(self.mags, (bin + 0.5) as usize).1;
+        }
+        let harmonicity = found as f32 / expected.max(1) as f32;
+        let quality = harmonicity * score / (score + QUALITY_SCALE);
+        let passes = found >= MIN_LINES.min(expected.max(1)) && harmonicity >= MIN_HARMONICITY;
+        Group { hz, amplitude, harmonicity, score, quality, passes }
+    }
+}
+
+/// One harmonic group of an analysis.
+#[derive(Debug, Clone, Copy, Default)]
+struct Group {
+    hz: f32,
+    amplitude: f32,
+    harmonicity: f32,
+    score: f32,
+    quality: f32,
+    /// Line count and harmonicity pass the test (quality is tested against the config).
+    passes: bool,
+}
+
+/// Finds the rotor groups of one analysis. `spec` holds magnitudes and whitened levels,
+/// `hop_s` is the time between analyses, `history` the previous analysis's passing groups
+/// (updated).
+pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut History) -> Peaks {
+    let bin_hz = spec.bin_hz;
+    let k_min = (libm::floorf(config.bpf_min_hz / bin_hz) as usize).max(2);
+    let k_max = (libm::ceilf(config.bpf_max_hz / bin_hz) as usize).min(spec.top - 2);
+    let (min_bin, max_bin) = (config.bpf_min_hz / bin_hz, config.bpf_max_hz / bin_hz);
+
+    // Candidates: whitened local maxima, strongest kept.
+    let mut cands = [(0usize, 0.0f32); MAX_CANDIDATES];
+    let mut n_cands = 0usize;
+    let w = spec.white;
+    for k in k_min..=k_max {
+        let v = w[k];
+        if v >= config.peak_floor_ratio && v >= w[k - 1] && v > w[k + 1] {
+            insert_strongest(&mut cands, &mut n_cands, (k, v));
+        }
+    }
+    // Resolved and scored groups, strongest score first, duplicates merged.
+    let mut groups = [Group::default(); MAX_CANDIDATES];
+    let mut n_groups = 0usize;
+    for &(k, _) in &cands[..n_cands] {
+        let b1 = refine_peak(spec.mags, k).0;
+        let Some(b) = spec.resolve(b1, min_bin, max_bin) else { continue };
+        if b < min_bin || b > max_bin {
+            continue;
+        }
+        let g = spec.comb(b, config.harmonics);
+        let dup = groups[..n_groups].iter().position(|o| libm::fabsf(o.hz - g.hz) < 1.5 * bin_hz);
+        match dup {
+            Some(i) if groups[i].score >= g.score => {}
+            Some(i) => groups[i] = g,
+            None => {
+                groups[n_groups] = g;
+                n_groups += 1;
+            }
+        }
+    }
+    let groups = &mut groups[..n_groups];
+    groups.sort_unstable_by(|a, b| b.score.total_cmp(&a.score));
+
+    let mut out = Peaks::default();
+    let mut next = History::new();
+    let best = groups.iter().find(|g| g.passes).map_or(0.0, |g| g.score);
+    let tolerance = 1.5 * bin_hz;
+    for g in groups.iter() {
+        if !g.passes
+            || g.quality < config.bpf_min_quality
+            || g.score < config.peak_relative_score * best
+        {
+            continue;
+        }
+        let related = next.hz[..next.count].iter().any(|&a| {
+            let (lo, hi) = if g.hz > a { (a, g.hz) } else { (g.hz, a) };
+            let n = libm::roundf(hi / lo);
+            libm::fabsf(hi - n * lo) < tolerance * n.max(1.0)
+        });
+        if related || next.count == next.hz.len() {
+            continue;
+        }
+        next.hz[next.count] = g.hz;
+        next.count += 1;
+        let allowed = 2.0 * bin_hz + config.bpf_max_rate_per_s * hop_s * g.hz;
+        if history.continues(g.hz, allowed) && (out.count as usize) < out.peaks.len() {
+            out.peaks[out.count as usize] = Peak {
+                hz: g.hz,
+                amplitude: g.amplitude,
+                harmonicity: g.harmonicity,
+                quality: g.quality,
+            };
+            out.count += 1;
+        }
+    }
+    *history = next;
+    out.rotor = out.count > 0;
+    out.bpf_hz = out.peaks[0].hz;
+    out
+}
+
+fn insert_strongest(cands: &mut [(usize, f32); MAX_CANDIDATES], n: &mut usize, c: (usize, f32)) {
+    if *n < cands.len() {
+        cands[*n] = c;
+        *n += 1;
+        return;
+    }
+    let (weakest, _) =
+        cands
+            .iter()
+            .enumerate()
+            .fold((0, f32::INFINITY), |acc, (i, x)| if x.1 < acc.1 { (i, x.1) } else { acc });
+    if cands[weakest].1 < c.1 {
+        cands[weakest] = c;
+    }
+}
