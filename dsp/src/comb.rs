@@ -5,7 +5,8 @@
 //!
 //! 1. **Floor.** The band is cut into blocks of [`FLOOR_BLOCK`] bins (62.5 Hz). Per block the
 //!    mean magnitude, then the mean of the bins below twice that mean (tonal lines and their
-//!    Hann skirts are left out); the floor at a bin is interpolated linearly between block
+//!    Hann skirts are left out), then the median of each block and its two neighbours (a block
+//!    crowded with rotor lines); the floor at a bin is interpolated linearly between block
 //!    centres. Whitened level `w(k) = |X(k)| / floor(k)`: noise alone is Rayleigh with mean ≈ 1.1
 //!    (`P(w > 3)` ≈ 0.3 %, `P(w > 5)` ≈ 10⁻⁸), whatever the tilt of the spectrum.
 //! 2. **Candidates.** Local maxima of `w` at or above `Config::peak_floor_ratio` inside the BPF
@@ -13,12 +14,14 @@
 //! 3. **Blade or shaft line.** A rotor's spectrum has lines at multiples of its shaft rate; the
 //!    blade-passing ones (multiples of the blade count) are the strong ones. For a candidate
 //!    `f` with line strengths `L(h)` (whitened level of the line nearest `h·f`, 0 when there is
-//!    none) the multiples `m·f` (m = 2, 3) are tested: when the lines at multiples of `m` carry
-//!    the comb and the others are weak (mean below [`SHAFT_RATIO`] of theirs), `f` was a shaft
-//!    line and `m·f` is the BPF. Then the sub-multiples `f/d` (d = 2, 3): when the lines
-//!    between `f`'s harmonics are as strong as [`SHAFT_RATIO`] of `f`'s own, `f` is a harmonic
-//!    of a lower fundamental: `f/d` if that is in the search range, else the candidate is
-//!    dropped (engines, mains hum, fans whose fundamental lies below the rotor range).
+//!    none) the multiples `m·f` (m = 2, 3) are tested: when the lines between the multiples of
+//!    `m` (h = m+1 ..= 3m) are weak (median level below [`SHAFT_RATIO`] of the stronger
+//!    neighbouring multiple), `f` was a shaft line and `m·f` is the BPF. Then the sub-multiples
+//!    `f/d` (d = 2, 3): when the lines between `f`'s harmonics are that strong, `f` is a
+//!    harmonic of a lower fundamental: `f/d` if that is in the search range, else the candidate
+//!    is dropped (engines, mains hum, fans whose fundamental lies below the rotor range). The
+//!    lowest line is left out of both tests: there several rotors' shaft lines add up in one
+//!    bin.
 //! 4. **Comb score.** Over harmonics `h = 1..=Config::harmonics` of the resolved fundamental:
 //!    a line is found when the largest `w` within ±r bins of `h·f` is a local maximum of at
 //!    least [`LINE_RATIO`] (r = 1 bin plus 0.2 % of the line's frequency, for rotor-speed
@@ -50,7 +53,7 @@ pub const MIN_HARMONICITY: f32 = 0.5;
 /// Score at which the quality reaches half the harmonicity.
 pub const QUALITY_SCALE: f32 = 30.0;
 /// Shaft-line test: lines between the blade lines weaker than this fraction of them.
-pub const SHAFT_RATIO: f32 = 0.5;
+pub const SHAFT_RATIO: f32 = 0.6;
 /// Most fundamental candidates examined per analysis.
 pub const MAX_CANDIDATES: usize = 10;
 /// Harmonics of a candidate examined for the shaft/blade decision.
@@ -92,6 +95,16 @@ pub fn whiten(mags: &[f32], white: &mut [f32], lo: usize, top: usize) {
             }
         }
         *f = if n > 0 { s / n as f32 } else { mean };
+    }
+    // A block crowded with lines (several rotors' BPFs within 62.5 Hz) raises its own
+    // estimate: take the median of each block and its two neighbours.
+    let mut prev = floors[0];
+    for b in 0..blocks {
+        let next = if b + 1 < blocks { floors[b + 1] } else { floors[b] };
+        let cur = floors[b];
+        let med = cur.min(prev).max(cur.max(prev).min(next));
+        prev = cur;
+        floors[b] = med;
     }
     let tiny = f32::MIN_POSITIVE * 1e6;
     let end = lo + blocks * FLOOR_BLOCK;
@@ -178,27 +191,15 @@ impl Spectrum<'_> {
             *slot = self.strength(c);
             n = h;
         }
-        // Up: a shaft line whose multiple m carries the comb.
+        // Up: a shaft line whose multiples m carry the comb.
         let mut best: Option<(f32, usize)> = None;
         for m in 2..=3usize {
-            if m as f32 * bin > max_bin || n < 2 * m {
+            if m as f32 * bin > max_bin || n < 2 * m || l[m] <= 0.0 {
                 continue;
             }
-            let (mut a, mut na, mut b, mut nb) = (0.0f32, 0u32, 0.0f32, 0u32);
-            for (h, &s) in l.iter().enumerate().take(n + 1).skip(1) {
-                if h % m == 0 {
-                    a += s;
-                    na += 1;
-                } else {
-                    b += s;
-                    nb += 1;
-                }
-            }
-            let (a, b) = (a / na.max(1) as f32, b / nb.max(1) as f32);
-            if a >= LINE_RATIO && b < SHAFT_RATIO * a {
-                let ratio = b / a;
-                if best.is_none_or(|(r, _)| ratio < r) {
-                    best = Some((ratio, m));
+            if let Some(r) = between_ratio(&l[..=n.min(3 * m)], m) {
+                if r < SHAFT_RATIO && best.is_none_or(|(b, _)| r < b) {
+                    best = Some((r, m));
                 }
             }
         }
@@ -206,27 +207,26 @@ impl Spectrum<'_> {
             let c = m as f32 * bin;
             return Some(self.line(c).map_or(c, |line| refine_peak(self.mags, line.bin).0));
         }
-        // Down: a harmonic of a lower fundamental.
-        let own = {
-            let k = n.min(6);
-            l[1..=k].iter().sum::<f32>() / k.max(1) as f32
-        };
+        // Down: a harmonic of a lower fundamental, whose lines between this comb's are as
+        // strong as this comb's own.
         for d in [2usize, 3] {
             let sub = bin / d as f32;
-            let (mut s, mut ns) = (0.0f32, 0u32);
-            for j in 1..=3 * d {
-                if j % d == 0 {
-                    continue;
-                }
+            let mut ls = [0.0f32; 3 * CHECK_HARMONICS / 2 + 1];
+            let mut ns = 0;
+            for (j, slot) in ls.iter_mut().enumerate().skip(1) {
                 let c = j as f32 * sub;
-                if !self.in_band(c) {
+                if j > 3 * d || !self.in_band(c) {
                     break;
                 }
-                s += self.strength(c);
-                ns += 1;
+                *slot = if j % d == 0 { l[j / d] } else { self.strength(c) };
+                ns = j;
             }
-            if ns > 0 && s / ns as f32 >= SHAFT_RATIO * own {
-                return (sub >= min_bin).then_some(sub);
+            if ns >= 2 * d {
+                if let Some(r) = between_ratio(&ls[..=ns], d) {
+                    if r >= SHAFT_RATIO {
+                        return (sub >= min_bin).then_some(sub);
+                    }
+                }
             }
         }
         Some(bin)
@@ -357,6 +357,38 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     out.rotor = out.count > 0;
     out.bpf_hz = out.peaks[0].hz;
     out
+}
+
+/// The median, over the lines `l[j]` with `j > m` not a multiple of `m`, of their level relative to
+/// the stronger of the neighbouring multiples of `m` (`l[0]` unused; a missing line is 0; a
+/// ratio is capped at 2). `None` when no line has a neighbour to compare with.
+fn between_ratio(l: &[f32], m: usize) -> Option<f32> {
+    let n = l.len() - 1;
+    let mut r = [0.0f32; 24];
+    let mut k = 0;
+    // The first line is left out: below the blade fundamental, several rotors' shaft lines
+    // fall into one bin and add up, so it says nothing about the comb's pattern.
+    for j in m + 1..=n {
+        if j % m == 0 || k == r.len() {
+            continue;
+        }
+        let below = if j >= m { l[j / m * m] } else { 0.0 };
+        let above = if (j / m + 1) * m <= n { l[(j / m + 1) * m] } else { 0.0 };
+        let reference = below.max(above);
+        if reference > 0.0 {
+            r[k] = (l[j] / reference).min(2.0);
+            k += 1;
+        } else if l[j] > 0.0 {
+            r[k] = 2.0;
+            k += 1;
+        }
+    }
+    if k == 0 {
+        return None;
+    }
+    let r = &mut r[..k];
+    r.sort_unstable_by(f32::total_cmp);
+    Some(if k % 2 == 1 { r[k / 2] } else { 0.5 * (r[k / 2 - 1] + r[k / 2]) })
 }
 
 fn insert_strongest(cands: &mut [(usize, f32); MAX_CANDIDATES], n: &mut usize, c: (usize, f32)) {

@@ -47,7 +47,7 @@ pub struct Config {
     /// Default 0.35.
     pub bpf_min_quality: f32,
     /// Fastest relative change of a rotor's BPF between analyses that still continues a group,
-    /// per second. Default 0.5 (50 %/s: 13 % per 0.256 s hop).
+    /// per second. Default 0.2 (20 %/s: 5 % per 0.256 s hop).
     pub bpf_max_rate_per_s: f32,
     /// Blocks between two `Health` outputs. Default 48 (about 1 s at 48 kHz / 1024).
     pub health_interval_blocks: u32,
@@ -82,7 +82,7 @@ impl Config {
             peak_floor_ratio: 5.0,
             peak_relative_score: 0.1,
             bpf_min_quality: 0.35,
-            bpf_max_rate_per_s: 0.5,
+            bpf_max_rate_per_s: 0.2,
             health_interval_blocks: 48,
         }
     }

@@ -22,6 +22,7 @@ use rand::{rngs::StdRng, Rng, SeedableRng};
 
 pub mod air;
 pub mod array;
+pub mod bpf_bench;
 pub mod eval;
 pub mod filter;
 pub mod flight;
@@ -34,6 +35,7 @@ pub mod room;
 pub mod scenario;
 pub mod site;
 pub mod sound;
+pub mod tonal;
 pub mod truth;
 
 use array::Clock;

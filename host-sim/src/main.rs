@@ -19,6 +19,8 @@ enum Command {
     Analyze(cmd::analyze::Args),
     /// Simulate, run the pipeline and the tracker, and report the error against the truth.
     Fly(cmd::fly::Args),
+    /// Score the BPF detector on realistic simulated drones and non-drone sources.
+    BpfBench(cmd::bpf_bench::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -26,6 +28,7 @@ fn main() -> std::process::ExitCode {
         Command::Simulate(args) => cmd::simulate::run(args),
         Command::Analyze(args) => cmd::analyze::run(args),
         Command::Fly(args) => cmd::fly::run(args),
+        Command::BpfBench(args) => cmd::bpf_bench::run(args),
     };
     aim_tracker::exit::exit_code(result)
 }

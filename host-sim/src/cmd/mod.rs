@@ -1,4 +1,5 @@
 //! One module per `host-sim` subcommand: its arguments and its `run`.
 pub mod analyze;
+pub mod bpf_bench;
 pub mod fly;
 pub mod simulate;
