@@ -268,7 +268,8 @@ impl SpectralPath {
 /// Transforms a windowed [`ANALYSIS_LEN`]-sample buffer (decimated rate), whitens the
 /// spectrum and finds the rotor groups ([`crate::comb`]); `history` carries the passing groups
 /// from one analysis to the next. On return `buf[..ANALYSIS_LEN / 2]` holds the magnitude
-/// spectrum and `buf[ANALYSIS_LEN / 2..]` the whitened levels.
+/// spectrum up to [`MAX_ANALYSIS_HZ`] (0 above) and `buf[ANALYSIS_LEN / 2..]` the whitened
+/// levels.
 pub fn find_peaks(
     buf: &mut [f32; ANALYSIS_LEN],
     config: &Config,
@@ -278,15 +279,17 @@ pub fn find_peaks(
         let spectrum = microfft::real::rfft_4096(buf);
         spectrum[0].im = 0.0; // the Nyquist bin is packed here; it is outside every band used
     }
-    // Magnitudes in place: bin k reads buf[2k], buf[2k+1] and writes buf[k] ≤ 2k.
-    for k in 0..ANALYSIS_LEN / 2 {
+    let bin_hz = DECIMATED_RATE_HZ as f32 / ANALYSIS_LEN as f32;
+    let top = ((MAX_ANALYSIS_HZ / bin_hz) as usize).min(ANALYSIS_LEN / 2 - 2);
+    // Magnitudes in place, up to the analysed band: bin k reads buf[2k], buf[2k+1] and writes
+    // buf[k] ≤ 2k.
+    for k in 0..top + 2 {
         let (re, im) = (buf[2 * k], buf[2 * k + 1]);
         let p = re * re + im * im;
         buf[k] = if p > 0.0 { p * crate::gcc_phat::rsqrt(p) } else { 0.0 };
     }
+    buf[top + 2..ANALYSIS_LEN / 2].fill(0.0);
     let (mags, white) = buf.split_at_mut(ANALYSIS_LEN / 2);
-    let bin_hz = DECIMATED_RATE_HZ as f32 / ANALYSIS_LEN as f32;
-    let top = ((MAX_ANALYSIS_HZ / bin_hz) as usize).min(mags.len() - 2);
     let low = (FLOOR_LOW_HZ / bin_hz) as usize;
     crate::comb::whiten(mags, white, low, top);
     let spec = crate::comb::Spectrum { mags, white, bin_hz, top };

@@ -55,7 +55,7 @@ pub const QUALITY_SCALE: f32 = 30.0;
 /// Shaft-line test: lines between the blade lines weaker than this fraction of them.
 pub const SHAFT_RATIO: f32 = 0.6;
 /// Most fundamental candidates examined per analysis.
-pub const MAX_CANDIDATES: usize = 10;
+pub const MAX_CANDIDATES: usize = 8;
 /// Harmonics of a candidate examined for the shaft/blade decision.
 const CHECK_HARMONICS: usize = 12;
 
@@ -78,7 +78,7 @@ impl History {
 }
 
 /// Writes the whitened level `|X(k)| / floor(k)` of `mags[k]` into `white[k]` for `lo ≤ k < top`
-/// (0 elsewhere).
+/// (0 elsewhere; `1 / floor` is interpolated linearly between block centres).
 pub fn whiten(mags: &[f32], white: &mut [f32], lo: usize, top: usize) {
     let blocks = (top - lo) / FLOOR_BLOCK;
     let mut floors = [0.0f32; 64];
@@ -106,7 +106,11 @@ pub fn whiten(mags: &[f32], white: &mut [f32], lo: usize, top: usize) {
         prev = cur;
         floors[b] = med;
     }
+    // Reciprocal floors: the per-bin work below is one multiply-add and one multiply.
     let tiny = f32::MIN_POSITIVE * 1e6;
+    for f in &mut floors[..blocks] {
+        *f = 1.0 / f.max(tiny);
+    }
     let end = lo + blocks * FLOOR_BLOCK;
     white[..lo].fill(0.0);
     white[end..].fill(0.0);
@@ -119,9 +123,13 @@ pub fn whiten(mags: &[f32], white: &mut [f32], lo: usize, top: usize) {
         let stop = if b + 1 < blocks { lo + (b + 1) * FLOOR_BLOCK + half } else { end };
         let c0 = (lo + b * FLOOR_BLOCK + half) as f32;
         let slope = (f1 - f0) * (1.0 / FLOOR_BLOCK as f32);
+        // Between the centres the reciprocal is interpolated; outside them (the band's
+        // edges) it is held.
+        let mut inv = f0 + slope * (start as f32 - c0);
+        let (lo_inv, hi_inv) = (f0.min(f1), f0.max(f1));
         for k in start..stop {
-            let floor = (f0 + slope * (k as f32 - c0)).max(f0.min(f1)).max(tiny);
-            white[k] = mags[k] / floor;
+            white[k] = mags[k] * inv.clamp(lo_inv, hi_inv);
+            inv += slope;
         }
     }
 }
