@@ -16,6 +16,8 @@
 //! Truth: per rotor, blades × its speed averaged over the frame's analysis window. A frame is
 //! **correct** when its BPF lies within 2 Hz of some rotor's; an **octave error** when instead
 //! it lies within 2 % of ½, ⅓, 2 or 3 times some rotor's.
+//!
+//! `AIM_BPF_DEBUG=1` prints every drone frame's BPF and the rotors' true BPFs on stderr.
 use nalgebra::Vector3;
 
 use aim_dsp::{Config, Geometry, Output, Pipeline};

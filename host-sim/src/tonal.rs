@@ -185,7 +185,7 @@ pub fn comb(
             }
         }
         out.push(v);
-        phase += f0 * (1.0 + drift.next()) / fs;
+        phase += f0 * (1.0 + drift.step()) / fs;
         phase -= phase.floor();
     }
     out
@@ -210,7 +210,7 @@ impl Ou {
     }
 
     /// The next value.
-    pub fn next(&mut self) -> f64 {
+    pub fn step(&mut self) -> f64 {
         self.x = self.a * self.x + self.b * self.noise.sample();
         self.x
     }
