@@ -111,6 +111,12 @@ impl FrontEnd {
         f
     }
 
+    /// DC estimate of microphone `mic`, in the scale of the samples it is subtracted from (Q31,
+    /// or Q30 after the half-band decimator).
+    pub fn dc(&self, mic: usize) -> i32 {
+        self.dc[mic]
+    }
+
     /// Input samples per output sample (1 or 2).
     pub fn decimation(&self) -> usize {
         self.decimation as usize

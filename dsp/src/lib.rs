@@ -30,6 +30,7 @@ pub mod frontend;
 pub mod gcc_phat;
 mod geometry;
 mod output;
+pub mod pdm;
 pub mod pipeline;
 pub mod window;
 
@@ -39,7 +40,7 @@ pub use geometry::{
     Geometry, CIRCLE_8MIC_RADIUS_M, RESPEAKER_4MIC_SIDE_M, RESPEAKER_6MIC_RADIUS_M,
 };
 pub use output::{Doa, Health, Output, Peak, Peaks};
-pub use pipeline::Pipeline;
+pub use pipeline::{GapStats, Pipeline};
 
 /// Fewest microphones an array may have.
 pub const MIN_MICS: usize = 4;

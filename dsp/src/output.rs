@@ -76,4 +76,14 @@ pub struct Health {
     pub peak_dbfs: f32,
     /// Block exponent of the last block: Q15 value · 2^(exponent − 15) = fraction of full scale.
     pub block_exponent: i8,
+    /// Microphones measured in `mic_rms_dbfs` and `mic_dc_dbfs` (the array's count).
+    pub mics: u8,
+    /// Per microphone, the RMS level of its DC-removed signal in the interval's first block,
+    /// dB relative to full scale (−200 for an all-zero block): a dead or stuck microphone is
+    /// far below its neighbours.
+    pub mic_rms_dbfs: [f32; crate::MAX_MICS],
+    /// Per microphone, the front end's DC estimate at the same block, dB relative to full
+    /// scale (−200 for zero): a microphone stuck at a constant word shows a large DC and no
+    /// RMS, a dead (silent, all-zero) one neither.
+    pub mic_dc_dbfs: [f32; crate::MAX_MICS],
 }

@@ -6,11 +6,20 @@
 //! `health_interval_blocks` blocks (about 1 per second at 48 kHz). A `Doa` is left out when
 //! fewer than two pairs, spanning the plane, carry a coherent peak (silence, a single tone).
 //!
-//! Memory is fixed: `size_of::<Pipeline>()` is 116 008 bytes on the Cortex-M4F (the
+//! Memory is fixed: `size_of::<Pipeline>()` is 116 040 bytes on the Cortex-M4F (the
 //! `memory_budget` test keeps it ≤ 128 KiB), all of it in the struct, nothing on the heap and
 //! only small temporaries on the stack (904 bytes deep for `push`). The
 //! struct is `const`-constructible ([`Pipeline::empty`]) so the firmware can place it in a
 //! `static` and [`Pipeline::configure`] it there, without a large stack temporary.
+//!
+//! Gaps: when the capture loses samples (a DMA overrun, a chunk discarded because the DSP fell
+//! behind) the firmware calls [`Pipeline::gap`] with the number of frames lost. The sample
+//! index then jumps by that much, so every later stamp stays on the array's real clock, and
+//! every output whose span would cross the gap is dropped and counted ([`GapStats`]): the
+//! partly filled block, a DoA average in progress, every BPF analysis window that holds
+//! samples from before the gap. The filters' memory (DC removal, half-band, the spectral
+//! decimator) is kept: a transient of their length (under 1 ms) in the first block after a
+//! gap, where a reset would instead cost the DC estimate's much longer settling.
 
 use microfft::Complex32;
 
@@ -21,6 +30,19 @@ use crate::gcc_phat::{self, DelayEstimate, Twiddles};
 use crate::{
     Config, ConfigError, Doa, Health, Output, MAX_BAND_BINS, MAX_BLOCK_LEN, MAX_MICS, MAX_PAIRS,
 };
+
+/// Discontinuities the pipeline was told about ([`Pipeline::gap`]) and what they cost. Counters
+/// count from [`Pipeline::configure`] and wrap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GapStats {
+    /// Gaps reported (calls of [`Pipeline::gap`] with at least one lost frame).
+    pub gaps: u32,
+    /// Input frames (samples per microphone) lost in them.
+    pub frames_lost: u64,
+    /// Outputs dropped because their span crossed a gap: DoA averages abandoned (the partial
+    /// block included) and BPF analyses whose window held samples from before a gap.
+    pub outputs_dropped: u32,
+}
 
 /// Most words per TDM frame ([`Config::tdm_slots`]).
 const MAX_TDM_SLOTS: usize = 16;
@@ -73,6 +95,18 @@ pub struct Pipeline {
     health_start: u64,
     health_blocks: u32,
     health_peak: u32,
+    /// Per microphone, Σ (x >> 8)² over the first block of the Health interval.
+    level_power: [u64; MAX_MICS],
+    /// Per microphone, the DC estimate at that block.
+    level_dc: [i32; MAX_MICS],
+    // gaps
+    gap_stats: GapStats,
+    /// Real (input-rate) samples skipped by gaps: the spectral path's stamps count only the
+    /// samples it was fed, so its stamps plus this are on the array's clock.
+    spectral_skipped: u64,
+    /// The spectral path's own stamp of its first sample after the last gap; an analysis
+    /// window that starts earlier holds samples from before the gap and is dropped.
+    spectral_clean_from: u64,
 }
 
 impl Pipeline {
@@ -111,10 +145,15 @@ impl Pipeline {
             health_start: 0,
             health_blocks: 0,
             health_peak: 0,
+            level_power: [0; MAX_MICS],
+            level_dc: [0; MAX_MICS],
+            gap_stats: GapStats { gaps: 0, frames_lost: 0, outputs_dropped: 0 },
+            spectral_skipped: 0,
+            spectral_clean_from: 0,
         }
     }
 
-    /// A configured pipeline by value (116 008 bytes: prefer [`Pipeline::empty`] +
+    /// A configured pipeline by value (116 040 bytes: prefer [`Pipeline::empty`] +
     /// [`Pipeline::configure`] in place on small stacks).
     pub fn new(config: &Config) -> Result<Self, ConfigError> {
         let mut p = Self::empty();
@@ -168,6 +207,9 @@ impl Pipeline {
         self.health_start = 0;
         self.health_blocks = 0;
         self.health_peak = 0;
+        self.gap_stats = GapStats::default();
+        self.spectral_skipped = 0;
+        self.spectral_clean_from = 0;
         self.delays = [DelayEstimate::default(); MAX_PAIRS];
         for c in &mut self.cross {
             c.fill(Complex32::new(0.0, 0.0));
@@ -246,12 +288,69 @@ impl Pipeline {
         }
     }
 
+    /// Tells the pipeline that `lost_frames` TDM frames were lost before the next word pushed:
+    /// the next word starts a frame whose sample index is that of the frame that would have
+    /// come next, plus `lost_frames`. A frame left incomplete by the last push is dropped (its
+    /// index counts as used). Outputs whose span would cross the gap are dropped and counted in
+    /// [`Pipeline::gap_stats`]. `lost_frames` = 0 does nothing.
+    pub fn gap(&mut self, lost_frames: u64) {
+        if !self.configured || lost_frames == 0 {
+            return;
+        }
+        let d = self.decimation as u64;
+        // An incomplete frame: its words are dropped, its index is used.
+        let partial = u64::from(self.slot != 0);
+        self.slot = 0;
+        let open = self.front.pair_open();
+        // The input frames of the block being filled (an open decimation pair included).
+        let consumed = self.fill as u64 * d + u64::from(open);
+        if open {
+            // Close the decimation pair with a silent frame standing for the first lost frame,
+            // so that the next frame starts a pair; its output is discarded with the block.
+            let zeros = [0i32; MAX_TDM_SLOTS];
+            let mut ignored = 0;
+            let (block, fill) = (&mut self.block, self.fill);
+            self.front.push_frame(
+                &zeros[..self.config.tdm_slots],
+                self.mics,
+                &mut ignored,
+                &mut |mic, y| block[mic][fill] = y,
+            );
+        }
+        let next = self.block_start + consumed + partial + lost_frames;
+        // The partial block and a DoA average in progress would span the gap.
+        if self.fill > 0 || open || partial > 0 || self.averaged > 0 {
+            self.gap_stats.outputs_dropped = self.gap_stats.outputs_dropped.wrapping_add(1);
+        }
+        self.health_peak = self.health_peak.max(core::mem::take(&mut self.block_peak));
+        self.fill = 0;
+        self.averaged = 0;
+        for c in &mut self.cross[..self.pair_count] {
+            c.fill(Complex32::new(0.0, 0.0));
+        }
+        // The spectral path was fed whole blocks up to `block_start`; it goes on from there.
+        let spectral_next = self.block_start - self.spectral_skipped;
+        self.spectral_skipped = next - spectral_next;
+        self.spectral_clean_from = spectral_next;
+        self.block_start = next;
+        self.gap_stats.gaps = self.gap_stats.gaps.wrapping_add(1);
+        self.gap_stats.frames_lost = self.gap_stats.frames_lost.wrapping_add(lost_frames);
+    }
+
+    /// Gaps reported since [`Pipeline::configure`] and the outputs they cost.
+    pub fn gap_stats(&self) -> GapStats {
+        self.gap_stats
+    }
+
     fn process_block(&mut self, sink: &mut impl FnMut(Output)) {
         let n = self.config.block_len;
         let peak = core::mem::take(&mut self.block_peak);
         let shift = frontend::block_shift(peak);
         self.last_exponent = self.q_exponent() - shift as i8;
         self.health_peak = self.health_peak.max(peak);
+        if self.health_blocks == 0 {
+            self.probe_levels();
+        }
 
         self.spatial_block(shift);
         if self.averaged == 0 {
@@ -377,20 +476,51 @@ impl Pipeline {
         let scale = 1.0 / ((1u64 << bits) as f32 * self.mics as f32);
         let due = self.spectral.push_block(&self.block[0][..self.fft_len], scale);
         if due {
-            let peaks = self.spectral.analyze(&self.config, &mut self.scratch, &self.twiddles);
+            if self.spectral.window_start_sample() < self.spectral_clean_from {
+                // The window holds samples from before a gap.
+                self.gap_stats.outputs_dropped = self.gap_stats.outputs_dropped.wrapping_add(1);
+                return;
+            }
+            let mut peaks = self.spectral.analyze(&self.config, &mut self.scratch, &self.twiddles);
+            peaks.sample_index += self.spectral_skipped;
             sink(Output::Peaks(peaks));
+        }
+    }
+
+    /// Measures each microphone's level in the block just filled (once per Health interval:
+    /// about 0.1 % of the samples, so its cost is negligible).
+    fn probe_levels(&mut self) {
+        let n = self.fft_len;
+        for mic in 0..self.mics {
+            // (x >> 8)² < 2^46, so 1024 of them fit a u64.
+            let power = self.block[mic][..n]
+                .iter()
+                .map(|&x| (i64::from(x >> 8) * i64::from(x >> 8)) as u64);
+            self.level_power[mic] = power.fold(0u64, u64::wrapping_add);
+            self.level_dc[mic] = self.front.dc(mic);
         }
     }
 
     fn take_health(&mut self) -> Health {
         let full_scale = (1u64 << (31 - self.q_exponent())) as f32;
         let peak = self.health_peak as f32 / full_scale;
+        let db = |ratio: f32| if ratio > 0.0 { 20.0 * libm::log10f(ratio) } else { -200.0 };
+        let mut mic_rms_dbfs = [-200.0f32; MAX_MICS];
+        let mut mic_dc_dbfs = [-200.0f32; MAX_MICS];
+        for mic in 0..self.mics {
+            let mean_square = self.level_power[mic] as f32 / self.fft_len as f32;
+            mic_rms_dbfs[mic] = db(libm::sqrtf(mean_square) * 256.0 / full_scale);
+            mic_dc_dbfs[mic] = db(self.level_dc[mic].unsigned_abs() as f32 / full_scale);
+        }
         let h = Health {
             sample_index: self.health_start,
             blocks: self.blocks,
             clipped_samples: self.front.clipped,
-            peak_dbfs: if peak > 0.0 { 20.0 * libm::log10f(peak) } else { -200.0 },
+            peak_dbfs: db(peak),
             block_exponent: self.last_exponent,
+            mics: self.mics as u8,
+            mic_rms_dbfs,
+            mic_dc_dbfs,
         };
         self.front.clipped = 0;
         self.health_peak = 0;

@@ -6,8 +6,10 @@
 //!
 //! - Geometry: one cargo feature, `mics-8` (default, 8-mic circle), `mics-6` (ReSpeaker 6-mic
 //!   circle) or `mics-4` (ReSpeaker 4-mic square).
-//! - Array id: the environment variable `AIM_ARRAY_ID` at build time (decimal, 0..=255,
-//!   default 1), e.g. `AIM_ARRAY_ID=2 cargo build -p aim-firmware --release --target thumbv7em-none-eabihf`.
+//! - Array id: at run time, derived from the chip's unique ID ([`array_id`],
+//!   `aim_wire::derived_array_id`), so one image serves every board; `aim frames` shows each
+//!   board's id and unique ID for the site file. `AIM_ARRAY_ID` at build time (decimal,
+//!   0..=255) overrides it, for a board whose derived id collides with another's.
 
 #[cfg(not(any(feature = "mics-8", feature = "mics-6", feature = "mics-4")))]
 compile_error!("choose the array: enable one of the features `mics-8`, `mics-6`, `mics-4`");
@@ -18,11 +20,27 @@ compile_error!("choose the array: enable one of the features `mics-8`, `mics-6`,
 ))]
 compile_error!("enable exactly one of `mics-8`, `mics-6`, `mics-4` (use --no-default-features)");
 
-/// The array id in every frame header (`AIM_ARRAY_ID` at build time, default 1).
-pub const ARRAY_ID: u8 = match option_env!("AIM_ARRAY_ID") {
-    Some(text) => parse_array_id(text),
-    None => 1,
+/// The array id set at build time (`AIM_ARRAY_ID`), if any.
+pub const BUILD_ARRAY_ID: Option<u8> = match option_env!("AIM_ARRAY_ID") {
+    Some(text) => Some(parse_array_id(text)),
+    None => None,
 };
+
+/// The array id in every frame header: [`BUILD_ARRAY_ID`] if set, else derived from the chip's
+/// unique ID (1..=255, `aim_wire::derived_array_id`).
+///
+/// Why derived rather than stored in flash and set over the serial link: the link is
+/// transmit-only today, a flash write needs its own sector (128 KB on this part) and a
+/// command protocol, and a stored id can be lost or copied with an image; the unique ID comes
+/// with the silicon, needs no state, and the host can map it (the site file's unique IDs give
+/// the ids the boards will send). A collision (1 in 255 per pair of boards) is reported by the
+/// host, which sees two unique IDs under one id; that board then gets `AIM_ARRAY_ID`.
+pub fn array_id(unique_id: &[u8; aim_wire::UNIQUE_ID_LEN]) -> u8 {
+    match BUILD_ARRAY_ID {
+        Some(id) => id,
+        None => aim_wire::derived_array_id(unique_id),
+    }
+}
 
 /// Number of microphones; microphone `i` is TDM slot `i`.
 #[cfg(feature = "mics-8")]

@@ -21,12 +21,17 @@ unsafe impl ZeroIsValid for u8 {}
 unsafe impl ZeroIsValid for u32 {}
 // SAFETY: as above.
 unsafe impl ZeroIsValid for i32 {}
+// SAFETY: as above.
+unsafe impl ZeroIsValid for u64 {}
+// SAFETY: `Chunk` is an array of u32 and a u64 (`repr(C)`), nothing else.
+unsafe impl ZeroIsValid for crate::capture::Chunk {}
 // SAFETY: an array of zero-valid elements is zero-valid.
 unsafe impl<T: ZeroIsValid, const N: usize> ZeroIsValid for [T; N] {}
 
-// SAFETY: audited against aim-dsp at commit d468704: every field of `Pipeline`, recursively
-// (`Config`, `Geometry`, `Pair`, `DelayEstimate`, `FrontEnd`, `SpectralPath`, `Decimator`,
-// microfft's `Complex32`), is an integer, a float, a `bool` or an array of those; no enum,
+// SAFETY: audited against aim-dsp at commit d468704 and again after `GapStats` was added:
+// every field of `Pipeline`, recursively (`Config`, `Geometry`, `Pair`, `DelayEstimate`,
+// `FrontEnd`, `SpectralPath`, `Decimator`, `GapStats`, microfft's `Complex32`), is an integer,
+// a float, a `bool` or an array of those; no enum,
 // reference, `NonZero` or `Option`. Zero bytes are an inert, unconfigured pipeline that
 // `Pipeline::configure` then sets up. Re-audit when `Pipeline` gains a field.
 unsafe impl ZeroIsValid for aim_dsp::Pipeline {}

@@ -11,15 +11,20 @@
 //!
 //! ```text
 //! SAI1 A --DMA1 S0--> ring (AXI SRAM) --capture task (interrupt executor, P6)--> chunk queue
-//!   --> processing task (thread mode): Pipeline::push, DWT cycles, watchdog, aim_wire encode
+//!   (each chunk stamped with its first frame's sample index; losses become gaps)
+//!   --> processing task (thread mode): Pipeline::gap/push, DWT cycles, watchdog, encode
 //!   --> uplink queue (drop oldest) --> uplink task (interrupt executor) --DMA1 S1--> USART3
 //! ```
 #![no_std]
 
+pub mod boot;
 pub mod capture;
+#[cfg(feature = "pdm")]
+pub mod capture_pdm;
 pub mod clocks;
 pub mod config;
 pub mod dma_buffer;
+pub mod fault;
 pub mod processing;
 pub mod stats;
 pub mod uplink;
@@ -35,10 +40,12 @@ bind_interrupts!(
 );
 
 /// Enables the instruction cache (the data cache stays off: DMA buffers need no maintenance,
-/// and the DSP state lives in DTCM, which is not cached anyway) and starts the DWT cycle
-/// counter. Call once at start-up, after `embassy_stm32::init`.
+/// and the DSP state lives in DTCM, which is not cached anyway), installs the MPU stack guard
+/// ([`fault::install_stack_guard`]) and starts the DWT cycle counter. Call once at start-up,
+/// after `embassy_stm32::init`.
 pub fn init_core(mut core: cortex_m::Peripherals) -> stats::CycleCounter {
     core.SCB.enable_icache();
+    fault::install_stack_guard(&mut core.MPU);
     stats::CycleCounter::start(&mut core.DCB, &mut core.DWT)
 }
 

@@ -8,19 +8,23 @@
 //!   several milliseconds per block and is preempted by the capture task whenever audio arrives.
 //!
 //! Everything below is start-up; the streaming loops live in the library (`capture`,
-//! `processing`, `uplink`) and never `unwrap!`.
+//! `processing`, `uplink`) and never `unwrap!`. A panic or fault anywhere is recorded, logged
+//! and resets the board (`aim_firmware::fault`); the next `Hello` reports it.
 #![no_std]
 #![no_main]
 
-use aim_firmware::capture::{self, SaiCapture};
+use aim_firmware::boot::StartReport;
+use aim_firmware::capture;
 use aim_firmware::{clocks, config, processing, uplink};
 use cortex_m_rt::entry;
+use defmt_rtt as _;
 use embassy_executor::{Executor, InterruptExecutor};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::wdg::IndependentWatchdog;
 use static_cell::StaticCell;
-use {defmt_rtt as _, panic_probe as _};
+
+aim_firmware::fault_handlers!();
 
 static EXECUTOR_CAPTURE: InterruptExecutor = InterruptExecutor::new();
 static EXECUTOR_THREAD: StaticCell<Executor> = StaticCell::new();
@@ -33,23 +37,25 @@ unsafe fn UART4() {
 
 #[entry]
 fn main() -> ! {
-    let p = embassy_stm32::init(clocks::embassy_config());
-    let core = defmt::unwrap!(cortex_m::Peripherals::take());
+    // First: the reset flags and the retained fault record, before anything can overwrite them.
+    let start = StartReport::take();
+    let p = embassy_stm32::init(start.clock.embassy_config());
+    let Some(core) = cortex_m::Peripherals::take() else {
+        panic!("core peripherals taken twice");
+    };
     let cycles = aim_firmware::init_core(core);
     if let Err(measured) = clocks::check_sai_kernel_clock() {
-        defmt::panic!(
-            "SAI1 kernel clock is {} Hz, expected {} Hz",
-            measured,
-            clocks::SAI_KERNEL_HZ
-        );
+        panic!("SAI1 kernel clock {} Hz, expected {}", measured, clocks::SAI_KERNEL_HZ);
     }
+    start.log();
     defmt::info!(
-        "aim-firmware {}: array {}, {} mics, {} Hz, SAI bit clock {} Hz",
+        "aim-firmware {}: array {}, {} mics, {} Hz, SAI bit clock {} Hz, core {} Hz",
         env!("CARGO_PKG_VERSION"),
-        config::ARRAY_ID,
+        config::array_id(&start.unique_id),
         config::MIC_COUNT,
         config::SAMPLE_RATE_HZ,
-        clocks::SAI_BIT_CLOCK_HZ
+        clocks::SAI_BIT_CLOCK_HZ,
+        clocks::sysclk_hz()
     );
 
     aim_firmware::freeze_watchdog_in_debug();
@@ -57,17 +63,30 @@ fn main() -> ! {
     watchdog.unleash();
 
     let (chunk_tx, chunk_rx) = capture::chunk_queue();
-    let sai = SaiCapture::new(aim_firmware::sai_pins!(p));
-    let uart = defmt::unwrap!(uplink::uplink_uart(p.USART3, p.PD8, p.DMA1_CH1));
-    let processing = processing::Processing::new(cycles, watchdog);
+    #[cfg(not(feature = "pdm"))]
+    let sai = capture::SaiCapture::new(aim_firmware::sai_pins!(p));
+    #[cfg(feature = "pdm")]
+    let sai = aim_firmware::capture_pdm::PdmCapture::new(aim_firmware::sai_pins!(p));
+    let Ok(uart) = uplink::uplink_uart(p.USART3, p.PD8, p.DMA1_CH1) else {
+        panic!("USART3 configuration rejected");
+    };
+    let processing = processing::Processing::new(cycles, watchdog, &start);
 
     interrupt::UART4.set_priority(Priority::P6);
     let spawner = EXECUTOR_CAPTURE.start(interrupt::UART4);
-    spawner.spawn(defmt::unwrap!(capture::capture_task(sai, chunk_tx)));
-    spawner.spawn(defmt::unwrap!(uplink::uplink_task(uart)));
+    #[cfg(not(feature = "pdm"))]
+    let capture = capture::capture_task(sai, chunk_tx);
+    #[cfg(feature = "pdm")]
+    let capture = aim_firmware::capture_pdm::capture_task(sai, chunk_tx);
+    let (Ok(capture), Ok(uplink)) = (capture, uplink::uplink_task(uart)) else {
+        panic!("capture or uplink task spawned twice");
+    };
+    spawner.spawn(capture);
+    spawner.spawn(uplink);
 
     let executor = EXECUTOR_THREAD.init(Executor::new());
-    executor.run(|spawner| {
-        spawner.spawn(defmt::unwrap!(processing::processing_task(processing, chunk_rx)));
+    executor.run(|spawner| match processing::processing_task(processing, chunk_rx) {
+        Ok(task) => spawner.spawn(task),
+        Err(_) => panic!("processing task spawned twice"),
     })
 }

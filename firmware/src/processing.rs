@@ -9,13 +9,14 @@ use embassy_stm32::peripherals::IWDG1;
 use embassy_stm32::wdg::IndependentWatchdog;
 use static_cell::ConstStaticCell;
 
+use crate::boot::StartReport;
 use crate::capture::{Chunk, ChunkReceiver};
-use crate::config::{self, ARRAY_ID, CHUNK_FRAMES, HELLO_INTERVAL_SAMPLES};
+use crate::config::{self, CHUNK_FRAMES, HELLO_INTERVAL_SAMPLES};
 use crate::stats::{bump, read, CycleCounter, CycleStats, COUNTERS};
 use crate::uplink::{EncodedFrame, MAX_FRAME_BYTES, UPLINK_QUEUE};
 
 /// Most DSP outputs one chunk can produce (one block ends per chunk at most: DoA, peaks,
-/// health); more are counted as dropped frames.
+/// health); more are counted in `outputs_overflowed`.
 const MAX_OUTPUTS_PER_CHUNK: usize = 8;
 
 /// The DSP configuration for this board (geometry and rates from [`config`]).
@@ -42,29 +43,43 @@ pub fn pipeline() -> &'static mut Pipeline {
     pipeline
 }
 
-/// Stops with the reason the DSP refused the board's configuration. (defmt, not `core::fmt`:
-/// float formatting alone would cost 20 KB of flash.)
+/// Stops with the reason the DSP refused the board's configuration: the values go to the
+/// defmt log, a fixed text to the panic (so the retained record and the next `Hello` name
+/// it). (defmt, not `core::fmt`, for the values: float formatting alone would cost 20 KB of
+/// flash.)
 fn config_rejected(error: &ConfigError) -> ! {
     match *error {
-        ConfigError::MicCount(n) => defmt::panic!("DSP config: {} microphones", n),
-        ConfigError::SampleRate(hz) => defmt::panic!("DSP config: sample rate {} Hz", hz),
-        ConfigError::BlockLen(n) => defmt::panic!("DSP config: block length {}", n),
+        ConfigError::MicCount(n) => {
+            defmt::error!("DSP config: {} microphones", n);
+            panic!("DSP config: microphone count");
+        }
+        ConfigError::SampleRate(hz) => {
+            defmt::error!("DSP config: sample rate {} Hz", hz);
+            panic!("DSP config: sample rate");
+        }
+        ConfigError::BlockLen(n) => {
+            defmt::error!("DSP config: block length {}", n);
+            panic!("DSP config: block length");
+        }
         ConfigError::TdmSlots { slots, mics } => {
-            defmt::panic!("DSP config: {} TDM slots for {} microphones", slots, mics)
+            defmt::error!("DSP config: {} TDM slots for {} microphones", slots, mics);
+            panic!("DSP config: TDM slots");
         }
         ConfigError::ApertureTooLarge { aperture_m } => {
-            defmt::panic!("DSP config: aperture {} m too large", aperture_m)
+            defmt::error!("DSP config: aperture {} m too large", aperture_m);
+            panic!("DSP config: aperture too large");
         }
-        _ => defmt::panic!("DSP config rejected: the geometry or a tunable (aim_dsp::ConfigError)"),
+        _ => panic!("DSP config rejected"),
     }
 }
 
 /// Reinterprets captured TDM words as the `i32` samples the pipeline takes (left-justified
 /// 24-bit two's complement: the bits are the same, only the type differs).
 pub fn tdm_words(chunk: &Chunk) -> &[i32] {
+    let words = &chunk.words;
     // SAFETY: u32 and i32 have the same size and alignment, and every bit pattern is a valid
     // value of both; the returned slice borrows `chunk`.
-    unsafe { core::slice::from_raw_parts(chunk.as_ptr().cast::<i32>(), chunk.len()) }
+    unsafe { core::slice::from_raw_parts(words.as_ptr().cast::<i32>(), words.len()) }
 }
 
 /// Stamps frames with this array's id and sequence numbers, encodes them, and queues them.
@@ -73,9 +88,9 @@ pub struct FrameSink {
 }
 
 impl FrameSink {
-    /// A sink for this board's array id.
-    pub const fn new() -> Self {
-        Self { encoder: aim_wire::Encoder::new(ARRAY_ID) }
+    /// A sink for frames of array `array_id` (the board's: [`config::array_id`]).
+    pub const fn new(array_id: u8) -> Self {
+        Self { encoder: aim_wire::Encoder::new(array_id) }
     }
 
     /// Encodes `body` and queues it (dropping the oldest queued frame if the queue is full).
@@ -111,12 +126,6 @@ impl FrameSink {
     }
 }
 
-impl Default for FrameSink {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 /// Everything the processing task owns.
 pub struct Processing {
     pipeline: &'static mut Pipeline,
@@ -128,74 +137,112 @@ pub struct Processing {
 }
 
 impl Processing {
-    /// Builds the pipeline (once) and the `Hello` frame for this board.
-    pub fn new(cycles: CycleCounter, watchdog: IndependentWatchdog<'static, IWDG1>) -> Self {
+    /// Builds the pipeline (once) and the `Hello` frame for this board: its geometry and
+    /// rates, and its start (`start`: reset cause, boot count, unique ID, the last panic).
+    pub fn new(
+        cycles: CycleCounter,
+        watchdog: IndependentWatchdog<'static, IWDG1>,
+        start: &StartReport,
+    ) -> Self {
         let config = dsp_config();
         let (major, minor, patch) = config::FIRMWARE_VERSION;
-        let hello = aim_wire::Body::Hello(from_dsp::hello(&config, [major, minor, patch]));
+        let mut hello = from_dsp::hello(&config, [major, minor, patch]);
+        start.fill_hello(&mut hello);
         Self {
             pipeline: pipeline(),
-            hello,
+            hello: aim_wire::Body::Hello(hello),
             block_len: config.block_len as u64,
-            sink: FrameSink::new(),
+            sink: FrameSink::new(config::array_id(&start.unique_id)),
             cycles,
             watchdog,
         }
     }
 }
 
-/// Processes chunks forever. Per chunk: `Pipeline::push` (timed), watchdog feed, frames out.
-/// `Hello` at start and every [`HELLO_INTERVAL_SAMPLES`]; the pipeline's periodic `Health`
+/// The firmware's counters and the pipeline's gap statistics, as `Health` reports them.
+fn firmware_counters(pipeline: &Pipeline, last_block_cycles: u32) -> FirmwareCounters {
+    let gaps = pipeline.gap_stats();
+    FirmwareCounters {
+        cycles_per_block: last_block_cycles,
+        dma_overruns: read(&COUNTERS.dma_overruns),
+        dropped_frames: read(&COUNTERS.frames_dropped),
+        queue_depth: UPLINK_QUEUE.len().min(usize::from(u8::MAX)) as u8,
+        dsp_overloads: read(&COUNTERS.dsp_overloads),
+        sai_overruns: read(&COUNTERS.sai_overruns),
+        gaps: gaps.gaps,
+        // Wraps like the other counters (after 24.9 h of lost audio).
+        frames_lost: gaps.frames_lost as u32,
+        outputs_dropped: gaps.outputs_dropped,
+        outputs_overflowed: read(&COUNTERS.outputs_overflowed),
+        uart_errors: read(&COUNTERS.uart_errors),
+        frames_unencodable: read(&COUNTERS.frames_unencodable),
+        chunks_captured: read(&COUNTERS.chunks_captured),
+    }
+}
+
+/// Processes chunks forever. Per chunk: a gap in the sample index first goes to
+/// `Pipeline::gap`, then `Pipeline::push` (timed), watchdog feed, frames out. `Hello` at start
+/// and every [`HELLO_INTERVAL_SAMPLES`] of the array clock; the pipeline's periodic `Health`
 /// is completed with the firmware's cycle count and loss counters.
 #[embassy_executor::task]
 pub async fn processing_task(mut state: Processing, mut chunks: ChunkReceiver) {
-    let mut samples: u64 = 0;
+    // Sample index of the next frame the pipeline expects.
+    let mut expected: u64 = 0;
     let mut next_hello: u64 = 0;
-    // Cycles of the chunks of the block being accumulated, and of the last complete block.
+    // Cycles and frames of the block being accumulated, and cycles of the last complete block.
     let mut block_cycles: u32 = 0;
+    let mut block_frames: u64 = 0;
     let mut last_block_cycles: u32 = 0;
     let mut interval = CycleStats::default();
     let mut outputs: heapless::Vec<Output, MAX_OUTPUTS_PER_CHUNK> = heapless::Vec::new();
 
     loop {
-        if samples >= next_hello {
-            state.sink.send(samples, state.hello.clone());
-            next_hello = samples + HELLO_INTERVAL_SAMPLES;
+        if expected >= next_hello {
+            state.sink.send(expected, state.hello.clone());
+            next_hello = expected + HELLO_INTERVAL_SAMPLES;
         }
 
         let chunk = chunks.receive().await;
+        if chunk.first_frame > expected {
+            let lost = chunk.first_frame - expected;
+            state.pipeline.gap(lost);
+            defmt::warn!("gap of {} frames before sample {}", lost, chunk.first_frame);
+            // The pipeline dropped the block in progress.
+            block_cycles = 0;
+            block_frames = 0;
+        }
+        expected = chunk.first_frame + CHUNK_FRAMES as u64;
         let start = state.cycles.now();
         state.pipeline.push(tdm_words(chunk), &mut |output| {
             if outputs.push(output).is_err() {
-                bump(&COUNTERS.frames_dropped);
+                bump(&COUNTERS.outputs_overflowed);
             }
         });
         let spent = state.cycles.since(start);
         chunks.receive_done();
         state.watchdog.pet();
 
-        samples += CHUNK_FRAMES as u64;
         block_cycles = block_cycles.saturating_add(spent);
-        if samples.is_multiple_of(state.block_len) {
+        block_frames += CHUNK_FRAMES as u64;
+        if block_frames >= state.block_len {
             last_block_cycles = block_cycles;
             interval.record(block_cycles);
             block_cycles = 0;
+            block_frames -= state.block_len;
         }
 
         for output in outputs.drain(..) {
-            let counters = FirmwareCounters {
-                cycles_per_block: last_block_cycles,
-                dma_overruns: read(&COUNTERS.dma_overruns),
-                dropped_frames: read(&COUNTERS.frames_dropped),
-                queue_depth: UPLINK_QUEUE.len().min(usize::from(u8::MAX)) as u8,
-            };
+            let counters = firmware_counters(state.pipeline, last_block_cycles);
             if let Output::Health(_) = output {
                 defmt::info!(
-                    "health: block cycles mean {} max {} over {} blocks; overruns {}, dropped {}, sent {}",
+                    "health: block cycles mean {} max {} over {} blocks; ring overruns {}, SAI overruns {}, DSP overloads {}, gaps {}, dropped {}, sent {}",
                     interval.mean(),
                     interval.max,
                     interval.count,
                     counters.dma_overruns,
+                    counters.sai_overruns,
+                    counters.dsp_overloads,
+                    counters.gaps,
                     counters.dropped_frames,
                     read(&COUNTERS.frames_sent)
                 );

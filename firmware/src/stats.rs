@@ -5,13 +5,23 @@
 //! the DSP task in thread mode. They only count up (wrapping) so a host can difference them.
 use core::sync::atomic::{AtomicU32, Ordering};
 
-/// Event counters shared by the capture, DSP and uplink tasks.
+/// Event counters shared by the capture, DSP and uplink tasks. Each loss has its own counter,
+/// and every one of them is in `Health` (the gap counters come from the pipeline itself).
 #[derive(Debug)]
 pub struct Counters {
-    /// SAI/DMA ring overruns (each one restarted the capture driver; samples were lost).
+    /// DMA ring overruns: the ring wrapped before the capture task read it (each one restarted
+    /// the capture driver; the samples lost are a gap).
     pub dma_overruns: AtomicU32,
+    /// SAI FIFO overruns: the SAI's own overrun flag, read and cleared after every chunk (each
+    /// one restarted the capture driver: the slot order of the frames after it is unknown).
+    pub sai_overruns: AtomicU32,
+    /// Chunks the capture task discarded because the DSP task had no free queue slot (DSP
+    /// overload; each is a gap of `CHUNK_FRAMES` frames, and capture keeps running).
+    pub dsp_overloads: AtomicU32,
     /// Capture chunks handed to the DSP task (each `CHUNK_FRAMES` frames).
     pub chunks_captured: AtomicU32,
+    /// DSP outputs dropped because one chunk produced more than the processing task buffers.
+    pub outputs_overflowed: AtomicU32,
     /// Frames dropped because the uplink queue was full (the oldest frame is dropped).
     pub frames_dropped: AtomicU32,
     /// Frames that did not fit the uplink frame buffer or failed to encode.
@@ -27,7 +37,10 @@ impl Counters {
     pub const fn new() -> Self {
         Self {
             dma_overruns: AtomicU32::new(0),
+            sai_overruns: AtomicU32::new(0),
+            dsp_overloads: AtomicU32::new(0),
             chunks_captured: AtomicU32::new(0),
+            outputs_overflowed: AtomicU32::new(0),
             frames_dropped: AtomicU32::new(0),
             frames_unencodable: AtomicU32::new(0),
             frames_sent: AtomicU32::new(0),
@@ -60,9 +73,15 @@ pub static COUNTERS: Counters = Counters::new();
 pub struct CycleCounter(());
 
 impl CycleCounter {
-    /// Enables trace and starts the cycle counter.
+    /// Enables trace, unlocks the DWT and starts the cycle counter.
+    ///
+    /// The Cortex-M7's DWT has a software lock (the CoreSight lock access register): until it
+    /// is unlocked, writes to DWT_CTRL are ignored, so without a debugger attached (which
+    /// unlocks it) the counter would never start and read 0. `tests/hil` `dsp_time` checks
+    /// that it counts.
     pub fn start(dcb: &mut cortex_m::peripheral::DCB, dwt: &mut cortex_m::peripheral::DWT) -> Self {
         dcb.enable_trace();
+        cortex_m::peripheral::DWT::unlock();
         dwt.enable_cycle_counter();
         Self(())
     }

@@ -68,7 +68,14 @@ pub struct ArrayConfig {
     pub gain_mismatch_db: f64,
     /// Standard deviation of the microphones' delay (phase) error, µs.
     pub phase_mismatch_us: f64,
+    /// Microphones (indices) that give no signal at all: every sample 0.
+    pub dead_mics: Vec<usize>,
+    /// Microphones (indices) stuck at a constant output of [`STUCK_PA`].
+    pub stuck_mics: Vec<usize>,
 }
+
+/// The constant a stuck microphone outputs, Pa (a quarter of the default digital full scale).
+pub const STUCK_PA: f32 = 5.0;
 
 impl ArrayConfig {
     /// World position of microphone `i`, ENU m.
@@ -150,6 +157,8 @@ mod tests {
             self_noise_db: 30.0,
             gain_mismatch_db: 0.0,
             phase_mismatch_us: 0.0,
+            dead_mics: Vec::new(),
+            stuck_mics: Vec::new(),
         };
         // Mic 0 on the array's +x, which points along ENU +y.
         assert!((a.mic_position(0) - Vector3::new(1.0, 2.0463, 0.5)).norm() < 1e-12);

@@ -21,14 +21,14 @@
 use nalgebra::Vector3;
 
 use aim_dsp::{Config, Geometry, Output, Pipeline};
-use aim_tracker::intake::FrameConverter;
+use aim_tracker::intake::{Intake, IntakeConfig, Released};
 use aim_tracker::observation::Input;
 use aim_tracker::site::{ArrayPose, Site};
 use aim_wire::{from_dsp, Body, Deframer, Encoder, MAX_ENCODED_LEN};
 
 use crate::flight::{fly, ControlGains, FlightLog, Span};
 use crate::path::{FlightPlan, Heading};
-use crate::profile::DroneProfile;
+use crate::profile::{Airframe, DroneProfile};
 use crate::sound::propeller;
 use crate::tonal::{add, background, scale_to_spl, Hall, Negative};
 
@@ -149,16 +149,20 @@ fn frames_through_intake(pressure: &[f64]) -> anyhow::Result<Vec<(f64, Option<f6
         room: None,
         sample_rate_hz: Some(FS),
     };
-    let mut converter = FrameConverter::new(site);
+    let mut intake = Intake::new(site, IntakeConfig::default());
     let mut deframer: Deframer = Deframer::default();
     let mut out = Vec::new();
+    let mut sink = |r: Released| {
+        if let Released::Input(Input::Spectrum(s)) = r {
+            out.push((s.t, s.peaks.first().map(|p| p.hz)));
+        }
+    };
     for b in bytes {
         if let Some(Ok(f)) = deframer.push(b) {
-            if let Some(Input::Spectrum(s)) = converter.convert(&f) {
-                out.push((s.t, s.peaks.first().map(|p| p.hz)));
-            }
+            intake.push(&f, &mut sink).map_err(|e| anyhow::anyhow!("{e}"))?;
         }
     }
+    intake.finish(&mut sink);
     Ok(out)
 }
 
@@ -192,7 +196,8 @@ fn flight(profile: &DroneProfile, duration_s: f64, seed: u64) -> anyhow::Result<
     let plan = FlightPlan::new(&[a, b, a, b, a, b], 1.0, 1.5, 1.0, 0.5, 5.0, Heading::Fixed)
         .map_err(|e| anyhow::anyhow!(e))?;
     let span = Span { t0_s: 0.0, t1_s: duration_s + 1.0, dt_s: 0.005 };
-    Ok(fly(profile, &plan, 0.0, &ControlGains::default(), span, seed))
+    let airframe = Airframe::nominal(profile.rotor_count());
+    Ok(fly(profile, &airframe, &plan, 0.0, &ControlGains::default(), span, seed))
 }
 
 /// The drone's sound at 1 m: propellers and motor whine, `duration_s` at [`FS`].
@@ -206,7 +211,7 @@ pub fn drone_sound(
     let len = (duration_s * fs) as usize;
     let mut x = vec![0.0; len];
     for r in 0..profile.rotor_count() {
-        let s = propeller(profile, log, r, 0.0, fs, len, seed.wrapping_add(r as u64 * 7919));
+        let s = propeller(profile, 0.0, log, r, 0.0, fs, len, seed.wrapping_add(r as u64 * 7919));
         let mut rotor: Vec<f64> = s.samples.iter().map(|&v| f64::from(v)).collect();
         let rms = (rotor.iter().map(|v| v * v).sum::<f64>() / len as f64).sqrt();
         // Motor whine: 7 pole pairs, the electrical line and its double, 15 and 21 dB below

@@ -37,14 +37,16 @@ pub mod site;
 pub mod sound;
 pub mod tonal;
 pub mod truth;
+pub mod wav;
+pub mod window;
 
 use array::Clock;
 use filter::Gaussian;
 use flight::{ControlGains, FlightLog};
-use propagation::{Fixed, Medium, PathKind, PreparedSource, Receiver, Trajectory};
+use propagation::{Fixed, Medium, PathKind, Receiver, Trajectory};
 use scenario::{RotorSources, Scenario};
 use site::{Site, SiteArray, SiteObstacle, SiteRoom};
-use sound::SourceSignal;
+use sound::SignalBlocks as _;
 use truth::{Truth, TruthRow};
 
 /// Digital full scale of the simulated microphones, Pa: 120 dB SPL (a MEMS microphone of
@@ -73,6 +75,20 @@ pub struct ArrayRecording {
 }
 
 impl ArrayRecording {
+    /// The recording of `array` of `scenario` before any sound: its description, no channels.
+    pub fn empty_for(scenario: &Scenario, array: &array::ArrayConfig) -> Self {
+        ArrayRecording {
+            id: array.id,
+            sample_rate_hz: scenario.sample_rate_hz,
+            geometry: array.geometry.clone(),
+            positions: array.positions.clone(),
+            position_m: array.position_m.into(),
+            yaw_rad: array.yaw_rad,
+            clock: array.clock,
+            channels: Vec::new(),
+        }
+    }
+
     /// Interleaved TDM words as the firmware's DMA delivers them: frames of `tdm_slots` 32-bit
     /// words, microphone i in slot i (unused slots zero), 24-bit samples left-justified
     /// (`sample << 8`), `full_scale_pa` mapping to digital full scale, clipped.
@@ -107,8 +123,10 @@ pub struct Simulation {
     pub arrays: Vec<ArrayRecording>,
     /// Ground truth of the flight.
     pub truth: Truth,
-    /// The site file's content.
+    /// The site file's content: what a real site would know (no clocks, no airframe).
     pub site: Site,
+    /// The airframe this run drew from the scenario's population (truth only).
+    pub airframe: profile::Airframe,
     /// The flight at the control rate (covers the recordings' whole time span).
     pub flight: FlightLog,
 }
@@ -143,7 +161,7 @@ pub fn simulate(scenario: &Scenario, progress: &ProgressBar) -> anyhow::Result<S
 }
 
 /// Seed of a named random stream of the scenario.
-fn sub_seed(seed: u64, stream: u64) -> u64 {
+pub(crate) fn sub_seed(seed: u64, stream: u64) -> u64 {
     let mut r = StdRng::seed_from_u64(seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15));
     r.random()
 }
@@ -182,18 +200,55 @@ enum Reach {
     FreeDirect,
 }
 
-/// One sound source to render: its signal, where it is, and which paths it takes.
-struct Emitter<'a> {
-    signal: PreparedSource<'a>,
-    trajectory: Box<dyn Trajectory + 'a>,
-    reach: Reach,
-}
-
-/// Simulates `scenario`.
+/// Simulates `scenario`, keeping every microphone's whole recording in memory.
 pub fn simulate_with(
     scenario: &Scenario,
     options: &Options,
     progress: &ProgressBar,
+) -> anyhow::Result<Simulation> {
+    let mut keep =
+        Keep(scenario.arrays.iter().map(|a| vec![Vec::new(); a.positions.len()]).collect());
+    let mut sim = simulate_to(scenario, options, progress, &mut keep)?;
+    for (a, channels) in sim.arrays.iter_mut().zip(keep.0) {
+        a.channels = channels;
+    }
+    Ok(sim)
+}
+
+/// Receives a simulation's audio block by block.
+pub trait AudioSink {
+    /// The next block of array `array` (index in the scenario): `channels[m]` holds microphone
+    /// m's next samples, Pa. Blocks come in time order, every array's block of one instant
+    /// before the next instant's; all channels of a block have the same length.
+    fn block(&mut self, array: usize, channels: &[&[f32]]) -> anyhow::Result<()>;
+}
+
+/// The sink of [`simulate_with`]: appends every block to its recording.
+struct Keep(Vec<Vec<Vec<f32>>>);
+
+impl AudioSink for Keep {
+    fn block(&mut self, array: usize, channels: &[&[f32]]) -> anyhow::Result<()> {
+        for (kept, new) in self.0[array].iter_mut().zip(channels) {
+            kept.extend_from_slice(new);
+        }
+        Ok(())
+    }
+}
+
+/// Output samples per microphone rendered at a time (one second at 48 kHz): the simulation's
+/// memory holds this much output and every source's signal over this span plus the longest
+/// path's delay, whatever the duration.
+pub const OUTPUT_BLOCK: usize = 48_000;
+
+/// Simulates `scenario`, handing the audio to `sink` block by block ([`OUTPUT_BLOCK`] samples
+/// per microphone) as it is rendered, so memory does not grow with the duration (but for the
+/// flight log and the truth). The samples are the same bits [`simulate_with`] keeps. The
+/// returned simulation's `channels` are empty: the audio went to `sink`.
+pub fn simulate_to(
+    scenario: &Scenario,
+    options: &Options,
+    progress: &ProgressBar,
+    sink: &mut dyn AudioSink,
 ) -> anyhow::Result<Simulation> {
     let fs = scenario.sample_rate_hz as f64;
     let c = scenario.air.speed_of_sound_mps();
@@ -206,10 +261,13 @@ pub fn simulate_with(
     let t_first = offsets.clone().fold(0.0f64, f64::min) - pre_roll;
     let t_last = offsets.fold(0.0f64, f64::max) + scenario.duration_s * 1.001 + 0.05;
 
-    // Flight.
+    // Flight, by the airframe this seed draws.
+    let airframe =
+        scenario.population.draw(scenario.drone.rotor_count(), sub_seed(scenario.seed, 2));
     let dt = 1.0 / scenario.render.control_rate_hz;
     let log = flight::fly(
         &scenario.drone,
+        &airframe,
         &scenario.plan,
         scenario.yaw_rad,
         &ControlGains::default(),
@@ -217,62 +275,52 @@ pub fn simulate_with(
         sub_seed(scenario.seed, 1),
     );
 
-    // Source signals on the grid t_first + k / fs.
+    // Source signals on the grid t_first + k / fs, generated block by block into windows.
     let n_src = ((t_last - t_first) * fs).ceil() as usize + 4;
-    let mut signals: Vec<(SourceSignal, Box<dyn Trajectory + '_>, Reach)> = Vec::new();
     let rotors = scenario.drone.rotor_count();
-    let rotor_signal = |i: usize| {
-        sound::propeller(
-            &scenario.drone,
-            &log,
-            i,
-            t_first,
-            fs,
-            n_src,
-            sub_seed(scenario.seed, 100 + i as u64),
-        )
-    };
+    let mut rotor_gens: Vec<sound::Propeller> = (0..rotors)
+        .map(|i| {
+            sound::Propeller::new(
+                &scenario.drone,
+                airframe.shaft_line_boost_db[i],
+                &log,
+                i,
+                t_first,
+                fs,
+                n_src,
+                sub_seed(scenario.seed, 100 + i as u64),
+            )
+        })
+        .collect();
     let mode = scenario.render.rotor_sources;
-    let per_rotor: Vec<SourceSignal> = (0..rotors).map(rotor_signal).collect();
+    let mut trajectories: Vec<(Box<dyn Trajectory + '_>, Reach)> = Vec::new();
     if mode != RotorSources::Centre {
         let reach = if mode == RotorSources::Each { Reach::All } else { Reach::Direct };
-        for (i, s) in per_rotor.iter().enumerate() {
-            signals.push((s.clone(), Box::new(RotorPath { log: &log, rotor: i }), reach));
+        for i in 0..rotors {
+            trajectories.push((Box::new(RotorPath { log: &log, rotor: i }), reach));
         }
     }
     if mode != RotorSources::Each {
-        let mut sum = per_rotor[0].clone();
-        for s in &per_rotor[1..] {
-            for (a, b) in sum.samples.iter_mut().zip(&s.samples) {
-                *a += b;
-            }
-        }
         let reach = if mode == RotorSources::Centre { Reach::All } else { Reach::Indirect };
-        signals.push((sum, Box::new(CentrePath(&log)), reach));
+        trajectories.push((Box::new(CentrePath(&log)), reach));
     }
-    drop(per_rotor);
+    let mut noise_gens: Vec<noise::BandNoise> = Vec::new();
     for (i, n) in scenario.noise.iter().enumerate() {
-        let s = n.signal(t_first, fs, n_src, sub_seed(scenario.seed, 200 + i as u64));
-        signals.push((s, Box::new(Fixed(n.position_m)), Reach::All));
+        noise_gens.push(n.blocks(fs, n_src, sub_seed(scenario.seed, 200 + i as u64)));
+        trajectories.push((Box::new(Fixed(n.position_m)), Reach::All));
     }
     if let Some(d) = &scenario.diffuse_noise {
         // Plane waves centred on the arrays' centroid.
         let centre = scenario.arrays.iter().map(|a| a.position_m).sum::<Vector3<f64>>()
             / scenario.arrays.len() as f64;
         for (i, u) in d.directions().iter().enumerate() {
-            let s = d.signal(t_first, fs, n_src, sub_seed(scenario.seed, 300 + i as u64));
+            noise_gens.push(d.blocks(fs, n_src, sub_seed(scenario.seed, 300 + i as u64)));
             let position = centre + u * noise::DIFFUSE_DISTANCE_M;
-            signals.push((s, Box::new(Fixed(position)), Reach::FreeDirect));
+            trajectories.push((Box::new(Fixed(position)), Reach::FreeDirect));
         }
     }
-    let emitters: Vec<Emitter> = signals
-        .iter()
-        .map(|(s, t, d)| Emitter {
-            signal: PreparedSource::new(s),
-            trajectory: Box::new(Borrowed(t.as_ref())),
-            reach: *d,
-        })
-        .collect();
+    let mut windows: Vec<window::SourceWindow> =
+        trajectories.iter().map(|_| window::SourceWindow::new(t_first, fs, n_src)).collect();
 
     let medium = Medium {
         c_mps: c,
@@ -302,6 +350,8 @@ pub fn simulate_with(
         gain: f32,
         noise_rms: f64,
         seed: u64,
+        /// The microphone's fixed output when dead (0) or stuck, Pa.
+        fault: Option<f32>,
     }
     let mut jobs = Vec::new();
     for (ai, a) in scenario.arrays.iter().enumerate() {
@@ -321,98 +371,185 @@ pub fn simulate_with(
                 gain: 10f64.powf(gain_db / 20.0) as f32,
                 noise_rms: sound::spl_to_rms_pa(a.self_noise_db),
                 seed: rng.random(),
+                fault: if a.dead_mics.contains(&m) {
+                    Some(0.0)
+                } else if a.stuck_mics.contains(&m) {
+                    Some(array::STUCK_PA)
+                } else {
+                    None
+                },
             });
         }
     }
 
+    // The longest delay any path can have, s: the bound of `longest_path_m` over where the
+    // drone really flew, with margin. A read before it would be an error, never a silent zero.
+    let max_delay_s = 1.25 * longest_path_bound_m(scenario, &log) / c + 0.05;
+    let max_extra_s = jobs.iter().map(|j| j.receiver.extra_delay_s.abs()).fold(0.0, f64::max);
+
     progress.set_length((jobs.len() * n_out) as u64);
     progress.set_position(0);
     let block = scenario.render.block_samples;
-    const CHUNK: usize = 48_000;
-    let run_job = |job: &Job| -> Vec<f32> {
-        let mut out = vec![0.0f32; n_out];
-        for (ci, chunk) in out.chunks_mut(CHUNK).enumerate() {
-            let mut rx = job.receiver;
-            rx.t0_s += (ci * CHUNK) as f64 * rx.dt_s;
-            for e in &emitters {
-                let (m, p): (&Medium, &[PathKind]) = match e.reach {
-                    Reach::All => (&medium, &paths),
-                    Reach::Direct => (&medium, &direct_paths),
-                    Reach::Indirect => (&medium, &indirect),
-                    Reach::FreeDirect => (&free, &free_direct),
-                };
-                propagation::render(m, &e.signal, e.trajectory.as_ref(), p, &rx, block, chunk);
+    // Per microphone: its output block and its self-noise generator.
+    let states: Vec<std::sync::Mutex<(Vec<f32>, Gaussian)>> = jobs
+        .iter()
+        .map(|j| {
+            let g = Gaussian::new(StdRng::seed_from_u64(j.seed));
+            std::sync::Mutex::new((Vec::with_capacity(OUTPUT_BLOCK), g))
+        })
+        .collect();
+    let outside = std::sync::Mutex::new(None::<propagation::OutsideWindow>);
+    let run_job = |i: usize, ci: usize, n: usize, views: &[propagation::SourceView]| {
+        let job = &jobs[i];
+        let mut state = states[i].lock().expect("no panics while held");
+        let (out, g) = &mut *state;
+        out.clear();
+        out.resize(n, 0.0);
+        let mut rx = job.receiver;
+        rx.t0_s += (ci * OUTPUT_BLOCK) as f64 * rx.dt_s;
+        for ((traj, reach), view) in trajectories.iter().zip(views) {
+            let (m, p): (&Medium, &[PathKind]) = match reach {
+                Reach::All => (&medium, &paths),
+                Reach::Direct => (&medium, &direct_paths),
+                Reach::Indirect => (&medium, &indirect),
+                Reach::FreeDirect => (&free, &free_direct),
+            };
+            let rendered = propagation::render_window(m, view, traj.as_ref(), p, &rx, block, out);
+            if let Err(e) = rendered {
+                *outside.lock().expect("no panics while held") = Some(e);
             }
-            progress.inc(chunk.len() as u64);
         }
-        let mut g = Gaussian::new(StdRng::seed_from_u64(job.seed));
-        for y in &mut out {
+        for y in out.iter_mut() {
             *y = *y * job.gain + (g.sample() * job.noise_rms) as f32;
         }
-        out
+        if let Some(v) = job.fault {
+            out.fill(v);
+        }
+        progress.inc(n as u64);
     };
     let threads = match options.threads {
         0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
         n => n,
     }
     .min(jobs.len().max(1));
-    let mut outputs: Vec<Option<Vec<f32>>> = (0..jobs.len()).map(|_| None).collect();
-    if threads <= 1 {
-        for (j, o) in jobs.iter().zip(outputs.iter_mut()) {
-            *o = Some(run_job(j));
+
+    let mut rotor_block: Vec<Vec<f32>> = vec![Vec::new(); rotors];
+    let mut noise_block: Vec<f32> = Vec::new();
+    for ci in 0..n_out.div_ceil(OUTPUT_BLOCK) {
+        let n = OUTPUT_BLOCK.min(n_out - ci * OUTPUT_BLOCK);
+        // The signal indices this block can read, over every microphone's clock.
+        let (mut q_lo, mut q_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for j in &jobs {
+            let t0 = j.receiver.t0_s + (ci * OUTPUT_BLOCK) as f64 * j.receiver.dt_s;
+            let t1 = t0 + n as f64 * j.receiver.dt_s;
+            q_lo = q_lo.min((t0 - max_delay_s - max_extra_s - t_first) * fs);
+            q_hi = q_hi.max((t1 + max_extra_s - t_first) * fs);
         }
-    } else {
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let results = std::sync::Mutex::new(&mut outputs);
-        std::thread::scope(|s| {
-            for _ in 0..threads {
-                s.spawn(|| loop {
-                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(job) = jobs.get(i) else { break };
-                    let y = run_job(job);
-                    results.lock().expect("no worker panics while holding the lock")[i] = Some(y);
-                });
+        let need_lo = (q_lo.floor() - 8.0).max(0.0) as usize;
+        let need_hi = ((q_hi.ceil() + 8.0).max(0.0) as usize).min(n_src);
+        // Generate up to one past the last needed sample (its second difference needs it).
+        let have = windows.first().map_or(n_src, window::SourceWindow::end);
+        let more = (need_hi + 2).min(n_src).saturating_sub(have);
+        if more > 0 {
+            let mut e = 0;
+            for (buf, gen) in rotor_block.iter_mut().zip(rotor_gens.iter_mut()) {
+                buf.resize(more, 0.0);
+                gen.fill(buf);
             }
-        });
-    }
-    let mut outputs = outputs.into_iter().map(|o| o.expect("every job ran"));
-    let mut arrays = Vec::new();
-    for (ai, a) in scenario.arrays.iter().enumerate() {
-        let channels: Vec<Vec<f32>> = jobs
-            .iter()
-            .filter(|j| j.array == ai)
-            .map(|_| outputs.next().expect("one per job"))
-            .collect();
-        arrays.push(ArrayRecording {
-            id: a.id,
-            sample_rate_hz: scenario.sample_rate_hz,
-            geometry: a.geometry.clone(),
-            positions: a.positions.clone(),
-            position_m: a.position_m.into(),
-            yaw_rad: a.yaw_rad,
-            clock: a.clock,
-            channels,
-        });
+            if mode != RotorSources::Centre {
+                for buf in &rotor_block {
+                    windows[e].push(buf);
+                    e += 1;
+                }
+            }
+            if mode != RotorSources::Each {
+                // The rotors' sum, added in rotor order.
+                let (first, rest) = rotor_block.split_first_mut().expect("a drone has rotors");
+                for other in rest.iter() {
+                    for (a, b) in first.iter_mut().zip(other) {
+                        *a += b;
+                    }
+                }
+                windows[e].push(first);
+                e += 1;
+            }
+            for gen in &mut noise_gens {
+                noise_block.resize(more, 0.0);
+                gen.fill(&mut noise_block);
+                windows[e].push(&noise_block);
+                e += 1;
+            }
+        }
+        for w in &mut windows {
+            w.trim(need_lo);
+        }
+        let views: Vec<propagation::SourceView> = windows.iter().map(|w| w.view()).collect();
+        if threads <= 1 {
+            for i in 0..jobs.len() {
+                run_job(i, ci, n, &views);
+            }
+        } else {
+            let next = std::sync::atomic::AtomicUsize::new(0);
+            std::thread::scope(|s| {
+                for _ in 0..threads {
+                    s.spawn(|| loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if i >= jobs.len() {
+                            break;
+                        }
+                        run_job(i, ci, n, &views);
+                    });
+                }
+            });
+        }
+        if let Some(e) = *outside.lock().expect("no panics while held") {
+            anyhow::bail!(
+                "internal error: a path needed source samples {}..={} outside the window kept \
+                 ({}..{}); the delay bound is too short for this scenario",
+                e.needed_from,
+                e.needed_to,
+                need_lo,
+                need_hi
+            );
+        }
+        for ai in 0..scenario.arrays.len() {
+            let guards: Vec<_> = (0..jobs.len())
+                .filter(|&i| jobs[i].array == ai)
+                .map(|i| states[i].lock().expect("no panics while held"))
+                .collect();
+            let channels: Vec<&[f32]> = guards.iter().map(|g| g.0.as_slice()).collect();
+            sink.block(ai, &channels)?;
+        }
     }
     progress.finish_and_clear();
 
-    let truth = make_truth(scenario, &log);
+    let arrays = scenario.arrays.iter().map(|a| ArrayRecording::empty_for(scenario, a)).collect();
+    let mut truth = make_truth(scenario, &log);
+    truth.airframe = Some(airframe.clone());
     let site = make_site(scenario, c);
-    drop(emitters);
-    drop(signals);
-    Ok(Simulation { name: scenario.name.clone(), arrays, truth, site, flight: log })
+    drop(windows);
+    drop(trajectories);
+    Ok(Simulation { name: scenario.name.clone(), arrays, truth, site, airframe, flight: log })
 }
 
-/// A borrowed trajectory behind a box.
-struct Borrowed<'a>(&'a (dyn Trajectory + 'a));
-
-impl Trajectory for Borrowed<'_> {
-    fn position(&self, t_s: f64) -> Vector3<f64> {
-        self.0.position(t_s)
-    }
-    fn is_static(&self) -> bool {
-        self.0.is_static()
-    }
+/// Simulates `scenario` straight into `dir` (created if missing): `array-<id>.wav` written
+/// block by block as [`Simulation::write`] would write them (the same bytes), then the truth
+/// and site files. Memory does not grow with the duration but for the flight log and the
+/// truth. A sample that is not finite stops the run, and no WAV file is left behind.
+pub fn write_streamed(
+    scenario: &Scenario,
+    options: &Options,
+    progress: &ProgressBar,
+    dir: &Path,
+) -> anyhow::Result<Simulation> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let arrays: Vec<(u8, usize)> =
+        scenario.arrays.iter().map(|a| (a.id, a.positions.len())).collect();
+    let mut sink = wav::WavSink::create(dir, &arrays, scenario.sample_rate_hz)?;
+    let sim = simulate_to(scenario, options, progress, &mut sink)?;
+    sink.finish()?;
+    sim.write_truth_and_site(dir)?;
+    Ok(sim)
 }
 
 /// An upper bound of the longest path any simulated sound takes, m.
@@ -431,6 +568,12 @@ fn longest_path_m(s: &Scenario) -> f64 {
         lo = lo.inf(p);
         hi = hi.sup(p);
     }
+    path_bound_in_box(s, lo, hi)
+}
+
+/// The longest path bound for sound within the box `lo`..`hi` (widened to the room): its
+/// diagonal times the reflection order, or the diffuse field's distance.
+fn path_bound_in_box(s: &Scenario, mut lo: Vector3<f64>, mut hi: Vector3<f64>) -> f64 {
     if let Some(r) = &s.room {
         lo = lo.inf(&Vector3::zeros());
         hi = hi.sup(&Vector3::from(r.size_m));
@@ -440,6 +583,20 @@ fn longest_path_m(s: &Scenario) -> f64 {
     let diffuse = if s.diffuse_noise.is_some() { noise::DIFFUSE_DISTANCE_M + diag } else { 0.0 };
     // The diffracted path is at most twice the box-to-box diagonal.
     (diag * (order + 1.0) * 2.0).max(diffuse)
+}
+
+/// An upper bound of the longest path any simulated sound takes, m, from where the drone
+/// really flew (every logged position, widened by the rotors' reach) rather than the plan.
+fn longest_path_bound_m(s: &Scenario, log: &FlightLog) -> f64 {
+    let reach = log.rotors.iter().map(|r| r.position_m.norm()).fold(0.0, f64::max) + 0.5;
+    let mut pts: Vec<Vector3<f64>> = s.arrays.iter().map(|a| a.position_m).collect();
+    pts.extend(s.noise.iter().map(|n| n.position_m));
+    let (mut lo, mut hi) = (pts[0], pts[0]);
+    for p in pts.iter().chain(log.samples.iter().map(|x| &x.position)) {
+        lo = lo.inf(&(p - Vector3::repeat(reach)));
+        hi = hi.sup(&(p + Vector3::repeat(reach)));
+    }
+    path_bound_in_box(s, lo, hi).max(longest_path_m(s))
 }
 
 fn make_truth(s: &Scenario, log: &FlightLog) -> Truth {
@@ -468,7 +625,13 @@ fn make_truth(s: &Scenario, log: &FlightLog) -> Truth {
             los,
         });
     }
-    Truth { blades: s.drone.blades, array_ids: s.arrays.iter().map(|a| a.id).collect(), rows }
+    Truth {
+        blades: s.drone.blades,
+        array_ids: s.arrays.iter().map(|a| a.id).collect(),
+        clocks: s.arrays.iter().map(|a| a.clock).collect(),
+        airframe: None,
+        rows,
+    }
 }
 
 fn make_site(s: &Scenario, c: f64) -> Site {
@@ -485,8 +648,6 @@ fn make_site(s: &Scenario, c: f64) -> Site {
                 positions: a.positions.iter().map(|p| p.map(|v| (v * 1e9).round() / 1e9)).collect(),
                 position: a.position_m.into(),
                 yaw_deg: a.yaw_rad.to_degrees(),
-                clock_offset_s: a.clock.offset_s,
-                clock_drift_ppm: a.clock.drift_ppm,
             })
             .collect(),
         room: s.room.as_ref().map(|r| SiteRoom { size: r.size_m }),
@@ -505,15 +666,24 @@ fn make_site(s: &Scenario, c: f64) -> Site {
 
 impl Simulation {
     /// Writes `array-<id>.wav` (32-bit float, pascals, one channel per microphone),
-    /// `truth.csv` and `site.toml` into `dir` (created if missing).
+    /// `truth.csv`, `truth.toml` (clocks, airframe) and `site.toml` into `dir` (created if
+    /// missing).
     pub fn write(&self, dir: &Path) -> anyhow::Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for a in &self.arrays {
             let path = dir.join(format!("array-{}.wav", a.id));
-            write_wav(&path, a).with_context(|| format!("writing {}", path.display()))?;
+            wav::write_wav(&path, a).with_context(|| format!("writing {}", path.display()))?;
         }
+        self.write_truth_and_site(dir)
+    }
+
+    /// Writes `truth.csv`, `truth.toml` and `site.toml` into `dir`.
+    pub fn write_truth_and_site(&self, dir: &Path) -> anyhow::Result<()> {
         let truth = dir.join("truth.csv");
         std::fs::write(&truth, self.truth.to_csv())
+            .with_context(|| format!("writing {}", truth.display()))?;
+        let truth = dir.join("truth.toml");
+        std::fs::write(&truth, self.truth.to_toml())
             .with_context(|| format!("writing {}", truth.display()))?;
         let site = dir.join("site.toml");
         std::fs::write(&site, self.site.to_toml()?)
@@ -522,20 +692,98 @@ impl Simulation {
     }
 }
 
-fn write_wav(path: &Path, a: &ArrayRecording) -> anyhow::Result<()> {
-    let spec = hound::WavSpec {
-        channels: a.channels.len() as u16,
-        sample_rate: a.sample_rate_hz,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(path, spec)?;
-    let len = a.channels.first().map_or(0, Vec::len);
-    for k in 0..len {
-        for ch in &a.channels {
-            w.write_sample(ch[k])?;
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every key path of a TOML value ("array.clock_offset_s" style), and every number in it.
+    fn walk(v: &toml::Value, prefix: &str, keys: &mut Vec<String>, numbers: &mut Vec<f64>) {
+        match v {
+            toml::Value::Table(t) => {
+                for (k, x) in t {
+                    let p = if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") };
+                    keys.push(p.clone());
+                    walk(x, &p, keys, numbers);
+                }
+            }
+            toml::Value::Array(a) => a.iter().for_each(|x| walk(x, prefix, keys, numbers)),
+            toml::Value::Float(f) => numbers.push(*f),
+            toml::Value::Integer(i) => numbers.push(*i as f64),
+            _ => {}
         }
     }
-    w.finalize()?;
-    Ok(())
+
+    /// The site file audit: what `site.toml` says is only what a real site knows (where the
+    /// arrays, room and obstacles are, the nominal rate, the air's speed of sound). The arrays'
+    /// clock offsets and drifts and the drawn airframe go to `truth.toml` instead.
+    #[test]
+    fn site_file_holds_nothing_from_the_truth() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        // Five arrays with their own clocks, and an airframe drawn from a wide population.
+        let mut overrides = toml::Table::new();
+        let airframe: toml::Table = toml::from_str(
+            "wake_spread = 0.3\ncg_offset_mm = 2.0\nthrust_spread = 0.03\nchipped_probability = 1.0",
+        )
+        .unwrap();
+        overrides.insert("airframe".into(), toml::Value::Table(airframe));
+        let s = Scenario::load_with(&dir.join("zigzag10-los.toml"), 7, &overrides).unwrap();
+        assert!(s.arrays.iter().any(|a| a.clock.offset_s != 0.0 && a.clock.drift_ppm != 0.0));
+        let site: toml::Value = toml::from_str(&make_site(&s, 343.0).to_toml().unwrap()).unwrap();
+        let (mut keys, mut numbers) = (Vec::new(), Vec::new());
+        walk(&site, "", &mut keys, &mut numbers);
+        let allowed = [
+            "sample_rate_hz",
+            "speed_of_sound_mps",
+            "array",
+            "array.id",
+            "array.geometry",
+            "array.positions",
+            "array.position",
+            "array.yaw_deg",
+            "room",
+            "room.size",
+            "obstacle",
+            "obstacle.name",
+            "obstacle.min",
+            "obstacle.max",
+            "obstacle.loss_db",
+        ];
+        for k in &keys {
+            assert!(allowed.contains(&k.as_str()), "site.toml carries `{k}`");
+        }
+        let airframe = s.population.draw(s.drone.rotor_count(), sub_seed(s.seed, 2));
+        assert!(airframe.chipped_rotor.is_some());
+        let mut secrets: Vec<f64> =
+            s.arrays.iter().flat_map(|a| [a.clock.offset_s, a.clock.drift_ppm]).collect();
+        secrets.extend([airframe.wake_gain, airframe.cg_offset_m[0], airframe.cg_offset_m[1]]);
+        secrets.extend(&airframe.thrust_factor);
+        for x in secrets.iter().filter(|x| **x != 0.0 && **x != 1.0) {
+            assert!(!numbers.contains(x), "site.toml holds the truth's value {x}");
+        }
+        // …and the truth file has them.
+        let mut truth = make_truth(&s, &flight_stub(&s));
+        truth.airframe = Some(airframe.clone());
+        let t: toml::Value = toml::from_str(&truth.to_toml()).unwrap();
+        let (mut tk, mut tn) = (Vec::new(), Vec::new());
+        walk(&t, "", &mut tk, &mut tn);
+        assert!(tk.contains(&"array.clock_drift_ppm".to_string()));
+        assert!(tn.contains(&s.arrays[1].clock.offset_s) && tn.contains(&airframe.wake_gain));
+    }
+
+    /// A one-sample flight log at the plan's start (enough for `make_truth`'s shape).
+    fn flight_stub(s: &Scenario) -> FlightLog {
+        FlightLog {
+            t0_s: 0.0,
+            dt_s: 1.0,
+            samples: vec![flight::FlightSample {
+                t_s: 0.0,
+                position: s.plan.at(0.0).position,
+                velocity: Vector3::zeros(),
+                acceleration: Vector3::zeros(),
+                attitude: nalgebra::UnitQuaternion::identity(),
+                rotor_hz: vec![164.0; 4],
+            }],
+            rotors: s.drone.rotors(),
+        }
+    }
 }

@@ -19,6 +19,9 @@ enum Command {
     Analyze(cmd::analyze::Args),
     /// Simulate, run the pipeline and the tracker, and report the error against the truth.
     Fly(cmd::fly::Args),
+    /// Run a suite of scenario families × seeds (both filters, all cores) and tabulate the
+    /// errors as mean ± sd over seeds.
+    Bench(cmd::bench::Args),
     /// Score the BPF detector on realistic simulated drones and non-drone sources.
     BpfBench(cmd::bpf_bench::Args),
 }
@@ -28,6 +31,7 @@ fn main() -> std::process::ExitCode {
         Command::Simulate(args) => cmd::simulate::run(args),
         Command::Analyze(args) => cmd::analyze::run(args),
         Command::Fly(args) => cmd::fly::run(args),
+        Command::Bench(args) => cmd::bench::run(args),
         Command::BpfBench(args) => cmd::bpf_bench::run(args),
     };
     aim_tracker::exit::exit_code(result)

@@ -10,7 +10,7 @@ use nalgebra::Vector3;
 use rand::{rngs::StdRng, SeedableRng};
 
 use crate::filter::{Biquad, Cascade, Gaussian};
-use crate::sound::{spl_to_rms_pa, SourceSignal};
+use crate::sound::{spl_to_rms_pa, SignalBlocks, SourceSignal};
 
 /// A point source of band noise.
 #[derive(Clone, Debug, PartialEq)]
@@ -73,20 +73,58 @@ pub fn band_noise(
     len: usize,
     seed: u64,
 ) -> SourceSignal {
-    let scale = rms_pa / filter.white_noise_power_gain().sqrt();
-    let mut filter = filter;
-    let mut g = Gaussian::new(StdRng::seed_from_u64(seed));
-    // Let the filter settle before the first sample used.
-    for _ in 0..(sample_rate_hz as usize / 10) {
-        filter.process(g.sample());
-    }
-    let samples = (0..len).map(|_| (filter.process(g.sample()) * scale) as f32).collect();
+    let mut g = BandNoise::new(filter, rms_pa, sample_rate_hz, len, seed);
+    let mut samples = vec![0.0; len];
+    g.fill(&mut samples);
     SourceSignal { t0_s, sample_rate_hz, samples }
+}
+
+/// Band-limited Gaussian noise ([`band_noise`]) generated block by block.
+pub struct BandNoise {
+    filter: Cascade,
+    noise: Gaussian,
+    scale: f64,
+    /// Samples left before the signal ends.
+    left: usize,
+}
+
+impl BandNoise {
+    /// `len` samples of noise through `filter` with RMS `rms_pa`; the filter settles for 0.1 s
+    /// before the first sample.
+    pub fn new(filter: Cascade, rms_pa: f64, sample_rate_hz: f64, len: usize, seed: u64) -> Self {
+        let scale = rms_pa / filter.white_noise_power_gain().sqrt();
+        let mut filter = filter;
+        let mut noise = Gaussian::new(StdRng::seed_from_u64(seed));
+        // Let the filter settle before the first sample used.
+        for _ in 0..(sample_rate_hz as usize / 10) {
+            filter.process(noise.sample());
+        }
+        Self { filter, noise, scale, left: len }
+    }
+}
+
+impl SignalBlocks for BandNoise {
+    fn fill(&mut self, out: &mut [f32]) {
+        let n = out.len().min(self.left);
+        for y in &mut out[..n] {
+            *y = (self.filter.process(self.noise.sample()) * self.scale) as f32;
+        }
+        out[n..].fill(0.0);
+        self.left -= n;
+    }
 }
 
 impl NoiseSource {
     /// The source's signal as pressure at 1 m, Pa.
     pub fn signal(&self, t0_s: f64, sample_rate_hz: f64, len: usize, seed: u64) -> SourceSignal {
+        let mut g = self.blocks(sample_rate_hz, len, seed);
+        let mut samples = vec![0.0; len];
+        g.fill(&mut samples);
+        SourceSignal { t0_s, sample_rate_hz, samples }
+    }
+
+    /// [`Self::signal`] generated block by block.
+    pub fn blocks(&self, sample_rate_hz: f64, len: usize, seed: u64) -> BandNoise {
         let q = self.centre_hz / self.bandwidth_hz;
         // Two resonators in cascade: flatter top and steeper skirts than one.
         let filter = Cascade(vec![
@@ -94,7 +132,7 @@ impl NoiseSource {
             Biquad::bandpass(self.centre_hz, q * std::f64::consts::FRAC_1_SQRT_2, sample_rate_hz),
         ]);
         let rms_1m = spl_to_rms_pa(self.spl_db) * self.distance_m;
-        band_noise(filter, rms_1m, t0_s, sample_rate_hz, len, seed)
+        BandNoise::new(filter, rms_1m, sample_rate_hz, len, seed)
     }
 }
 
@@ -128,12 +166,20 @@ impl DiffuseNoise {
 
     /// Signal of one plane wave, as pressure at 1 m from a source `DIFFUSE_DISTANCE_M` away, Pa.
     pub fn signal(&self, t0_s: f64, sample_rate_hz: f64, len: usize, seed: u64) -> SourceSignal {
+        let mut g = self.blocks(sample_rate_hz, len, seed);
+        let mut samples = vec![0.0; len];
+        g.fill(&mut samples);
+        SourceSignal { t0_s, sample_rate_hz, samples }
+    }
+
+    /// [`Self::signal`] generated block by block.
+    pub fn blocks(&self, sample_rate_hz: f64, len: usize, seed: u64) -> BandNoise {
         let filter = Cascade(vec![
             Biquad::highpass(self.low_hz, std::f64::consts::FRAC_1_SQRT_2, sample_rate_hz),
             Biquad::lowpass(self.high_hz, std::f64::consts::FRAC_1_SQRT_2, sample_rate_hz),
         ]);
         let rms = spl_to_rms_pa(self.spl_db) / (self.directions as f64).sqrt() * DIFFUSE_DISTANCE_M;
-        band_noise(filter, rms, t0_s, sample_rate_hz, len, seed)
+        BandNoise::new(filter, rms, sample_rate_hz, len, seed)
     }
 }
 

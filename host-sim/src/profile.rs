@@ -238,6 +238,160 @@ impl DroneProfile {
     }
 }
 
+/// The spread of a drone population: how far one run's airframe strays from its profile. Each
+/// run draws its [`Airframe`] from this, seeded ([`Population::draw`]); all spreads 0 (the
+/// [`Default`]) is the nominal airframe, exactly the profile. Scenario table `[airframe]`.
+///
+/// Distributions (all uniform, independent):
+/// - wake gain `g ∈ [1 − wake_spread, 1 + wake_spread]` and curvature
+///   `q ∈ [−wake_curvature_per_mps, +wake_curvature_per_mps]`: a rotor `d` m/s downstream loses
+///   `κ g d (1 + q d)` of its thrust (κ the profile's `wake_loss_per_mps`), so the loss is
+///   non-linear in airspeed and its slope differs from the profile's by up to ±`wake_spread`;
+/// - centre-of-gravity offset: uniform in a disc of radius `cg_offset_m` in the body x–y
+///   plane. The controller's mixer assumes the nominal centre, so in hover its rate integrator
+///   settles on a static front/rear and left/right rotor-speed imbalance;
+/// - thrust coefficient of each motor/propeller: `k_v (1 + δᵢ)`, `δᵢ ∈ ±thrust_spread`
+///   (a further static imbalance the controller trims out);
+/// - rotor-speed jitter of each rotor: the profile's `rotor_jitter` times
+///   `∈ [1 − jitter_spread, 1 + jitter_spread]`;
+/// - with probability `chipped_probability` one rotor (uniform) has a chipped propeller: its
+///   thrust coefficient is `chipped_thrust_loss` lower and its shaft-rate lines (the
+///   imbalance tones) `chipped_line_db` louder.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Population {
+    /// Relative spread of the wake loss slope (0.3: ±30 %).
+    pub wake_spread: f64,
+    /// Spread of the wake loss curvature, per m/s.
+    pub wake_curvature_per_mps: f64,
+    /// Largest centre-of-gravity offset from the rotor centre, m.
+    pub cg_offset_m: f64,
+    /// Relative spread of each motor's thrust coefficient (0.03: ±3 %).
+    pub thrust_spread: f64,
+    /// Relative spread of each rotor's speed jitter.
+    pub jitter_spread: f64,
+    /// Probability that one propeller is chipped, 0..=1.
+    pub chipped_probability: f64,
+    /// Thrust coefficient lost by a chipped propeller, fraction.
+    pub chipped_thrust_loss: f64,
+    /// Extra level of a chipped propeller's shaft-rate lines, dB.
+    pub chipped_line_db: f64,
+}
+
+impl Default for Population {
+    /// The nominal airframe: no spread.
+    fn default() -> Self {
+        Self {
+            wake_spread: 0.0,
+            wake_curvature_per_mps: 0.0,
+            cg_offset_m: 0.0,
+            thrust_spread: 0.0,
+            jitter_spread: 0.0,
+            chipped_probability: 0.0,
+            chipped_thrust_loss: 0.03,
+            chipped_line_db: 10.0,
+        }
+    }
+}
+
+impl Population {
+    /// Checks the spreads; names the first bad key of the scenario's `[airframe]` table.
+    pub fn validate(&self) -> Result<(), String> {
+        let within = [
+            ("wake_spread", self.wake_spread, 0.9),
+            ("wake_curvature_per_mps", self.wake_curvature_per_mps, 0.5),
+            ("cg_offset_m", self.cg_offset_m, 0.05),
+            ("thrust_spread", self.thrust_spread, 0.3),
+            ("jitter_spread", self.jitter_spread, 1.0),
+            ("chipped_probability", self.chipped_probability, 1.0),
+            ("chipped_thrust_loss", self.chipped_thrust_loss, 0.5),
+            ("chipped_line_db", self.chipped_line_db, 40.0),
+        ];
+        for (name, v, max) in within {
+            if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                return Err(format!("airframe.{name} must be in 0..={max}, got {v}"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Draws one airframe for a drone of `rotors` rotors from `seed`. With every spread 0 the
+    /// result is [`Airframe::nominal`] whatever the seed.
+    pub fn draw(&self, rotors: usize, seed: u64) -> Airframe {
+        use rand::{rngs::StdRng, Rng, SeedableRng};
+        let mut rng = StdRng::seed_from_u64(seed);
+        // Every draw is taken whatever the spreads, so one spread does not shift the others.
+        let mut sym = |spread: f64| spread * (2.0 * rng.random::<f64>() - 1.0);
+        let wake_gain = 1.0 + sym(self.wake_spread);
+        let wake_curvature_per_mps = sym(self.wake_curvature_per_mps);
+        let thrust_factor: Vec<f64> = (0..rotors).map(|_| 1.0 + sym(self.thrust_spread)).collect();
+        let jitter_factor: Vec<f64> = (0..rotors).map(|_| 1.0 + sym(self.jitter_spread)).collect();
+        // Uniform in the disc: radius √u, angle uniform.
+        let (u, a): (f64, f64) = (rng.random(), rng.random());
+        let r = self.cg_offset_m * u.sqrt();
+        let (s, c) = (std::f64::consts::TAU * a).sin_cos();
+        let cg_offset_m = if r > 0.0 { [r * c, r * s] } else { [0.0, 0.0] };
+        let (chip, which): (f64, f64) = (rng.random(), rng.random());
+        let chipped_rotor = (chip < self.chipped_probability)
+            .then(|| ((which * rotors as f64) as usize).min(rotors.saturating_sub(1)));
+        let mut airframe = Airframe {
+            wake_gain,
+            wake_curvature_per_mps,
+            cg_offset_m,
+            thrust_factor,
+            jitter_factor,
+            chipped_rotor,
+            shaft_line_boost_db: vec![0.0; rotors],
+        };
+        if let Some(i) = chipped_rotor {
+            airframe.thrust_factor[i] *= 1.0 - self.chipped_thrust_loss;
+            airframe.shaft_line_boost_db[i] = self.chipped_line_db;
+        }
+        airframe
+    }
+}
+
+/// One drone as built: how this airframe differs from its profile (drawn from a
+/// [`Population`]). Simulation truth only: written to the truth file, never to the site file
+/// or a tracker profile.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Airframe {
+    /// Wake loss slope relative to the profile's `wake_loss_per_mps`.
+    pub wake_gain: f64,
+    /// Wake loss curvature q, per m/s: loss `κ g d (1 + q d)`.
+    pub wake_curvature_per_mps: f64,
+    /// Centre of gravity in the body frame (x forward, y left) relative to the rotors' centre, m.
+    pub cg_offset_m: [f64; 2],
+    /// Each rotor's thrust coefficient relative to the profile's (a chipped propeller's loss
+    /// included).
+    pub thrust_factor: Vec<f64>,
+    /// Each rotor's speed jitter relative to the profile's `rotor_jitter`.
+    pub jitter_factor: Vec<f64>,
+    /// Index of the rotor with a chipped propeller, if any (0-based, paper order).
+    pub chipped_rotor: Option<usize>,
+    /// Extra level of each rotor's shaft-rate lines, dB (nonzero on a chipped propeller).
+    pub shaft_line_boost_db: Vec<f64>,
+}
+
+impl Airframe {
+    /// The profile's own airframe, `rotors` rotors.
+    pub fn nominal(rotors: usize) -> Self {
+        Population::default().draw(rotors, 0)
+    }
+
+    /// Thrust factor of a rotor `downstream_mps` m/s downstream of the others (≥ 0) for a
+    /// profile wake loss `kappa_per_mps`: `1 − κ g d (1 + q d)`, kept within [0.5, 1].
+    pub fn wake_factor(&self, kappa_per_mps: f64, downstream_mps: f64) -> f64 {
+        let d = downstream_mps;
+        let loss = kappa_per_mps * self.wake_gain * d * (1.0 + self.wake_curvature_per_mps * d);
+        (1.0 - loss).clamp(0.5, 1.0)
+    }
+
+    /// The airframe as a TOML table (for the truth file).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).unwrap_or_default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -263,5 +417,62 @@ mod tests {
             // Odd rotors (index 0, 2, ..) spin one way, even ones the other: no net yaw torque.
             assert_eq!(r.iter().map(|m| m.spin).sum::<f64>(), 0.0);
         }
+    }
+    #[test]
+    fn nominal_population_draws_the_profile_whatever_the_seed() {
+        for seed in [0, 1, 99] {
+            let a = Population::default().draw(4, seed);
+            assert_eq!(a, Airframe::nominal(4));
+            assert_eq!(a.thrust_factor, vec![1.0; 4]);
+            assert_eq!(a.cg_offset_m, [0.0, 0.0]);
+            assert_eq!(a.chipped_rotor, None);
+            // The nominal wake factor is the profile's law 1 − κ d, bit for bit.
+            for d in [0.0, 0.7, 1.5, 3.0] {
+                assert_eq!(a.wake_factor(0.02, d), (1.0 - 0.02 * d).max(0.5));
+            }
+        }
+    }
+
+    #[test]
+    fn drawn_airframes_stay_in_their_stated_bounds_and_fill_them() {
+        let pop = Population {
+            wake_spread: 0.3,
+            wake_curvature_per_mps: 0.1,
+            cg_offset_m: 0.004,
+            thrust_spread: 0.03,
+            jitter_spread: 0.5,
+            chipped_probability: 0.25,
+            ..Population::default()
+        };
+        pop.validate().unwrap();
+        let draws: Vec<Airframe> = (0..2000).map(|s| pop.draw(4, s)).collect();
+        let gains: Vec<f64> = draws.iter().map(|a| a.wake_gain).collect();
+        let (lo, hi) = gains.iter().fold((f64::MAX, f64::MIN), |(l, h), &g| (l.min(g), h.max(g)));
+        assert!(lo >= 0.7 && hi <= 1.3 && lo < 0.72 && hi > 1.28, "{lo} {hi}");
+        let mean = gains.iter().sum::<f64>() / gains.len() as f64;
+        assert!((mean - 1.0).abs() < 0.02, "{mean}");
+        let chipped = draws.iter().filter(|a| a.chipped_rotor.is_some()).count() as f64 / 2000.0;
+        assert!((chipped - 0.25).abs() < 0.04, "{chipped}");
+        for a in &draws {
+            assert!(a.wake_curvature_per_mps.abs() <= 0.1);
+            assert!(a.cg_offset_m[0].hypot(a.cg_offset_m[1]) <= 0.004 + 1e-15);
+            for (i, f) in a.thrust_factor.iter().enumerate() {
+                let chip = if a.chipped_rotor == Some(i) { 0.97 } else { 1.0 };
+                assert!((f / chip - 1.0).abs() <= 0.03 + 1e-12, "{f}");
+            }
+            assert!(a.jitter_factor.iter().all(|j| (0.5..=1.5).contains(j)));
+        }
+        // The same seed draws the same airframe; another seed another one.
+        assert_eq!(pop.draw(4, 7), pop.draw(4, 7));
+        assert_ne!(pop.draw(4, 7), pop.draw(4, 8));
+        // The CG offset fills the disc uniformly: half the draws within r/√2.
+        let inner = draws
+            .iter()
+            .filter(|a| a.cg_offset_m[0].hypot(a.cg_offset_m[1]) < 0.004 / 2f64.sqrt())
+            .count() as f64
+            / 2000.0;
+        assert!((inner - 0.5).abs() < 0.04, "{inner}");
+        let bad = Population { thrust_spread: -0.1, ..pop };
+        assert!(bad.validate().unwrap_err().contains("airframe.thrust_spread"));
     }
 }

@@ -193,6 +193,47 @@ impl<'a> PreparedSource<'a> {
         }
         Self { signal, second_difference: d2 }
     }
+
+    /// The whole signal as a window.
+    pub fn view(&self) -> SourceView<'_> {
+        SourceView {
+            t0_s: self.signal.t0_s,
+            sample_rate_hz: self.signal.sample_rate_hz,
+            start: 0,
+            total: self.signal.samples.len(),
+            samples: &self.signal.samples,
+            second_difference: &self.second_difference,
+        }
+    }
+}
+
+/// A window of a source signal and its second difference (`s[k−1] − 2 s[k] + s[k+1]`, zero
+/// at both ends of the signal): samples `start .. start + samples.len()` of a signal of
+/// `total` samples whose sample k is at `t0_s + k / sample_rate_hz`. Outside `0 .. total`
+/// the signal is zero; inside it but outside the window it is unknown.
+#[derive(Clone, Copy, Debug)]
+pub struct SourceView<'a> {
+    /// Time of the signal's sample 0, s.
+    pub t0_s: f64,
+    /// Samples per second.
+    pub sample_rate_hz: f64,
+    /// Index of `samples[0]` in the signal.
+    pub start: usize,
+    /// Length of the whole signal, samples.
+    pub total: usize,
+    /// The window's samples, Pa at 1 m.
+    pub samples: &'a [f32],
+    /// Their second differences.
+    pub second_difference: &'a [f32],
+}
+
+/// A render needed source samples the window did not hold (the window was cut too short).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OutsideWindow {
+    /// First signal index needed, possibly negative.
+    pub needed_from: isize,
+    /// Last signal index needed.
+    pub needed_to: isize,
 }
 
 /// Samples per block over which delay and gain are interpolated linearly.
@@ -209,16 +250,33 @@ pub fn render(
     block: usize,
     out: &mut [f32],
 ) {
-    let fs_src = source.signal.sample_rate_hz;
-    let src = &source.signal.samples;
-    let d2 = &source.second_difference;
+    render_window(medium, &source.view(), trajectory, paths, receiver, block, out)
+        .expect("the whole signal is in its window");
+}
+
+/// [`render`] from a window of the source signal: the same bits as from the whole signal as
+/// long as every sample read lies in the window or outside the signal; otherwise the first
+/// read the window could not serve is reported (what `out` holds then is not to be used).
+pub fn render_window(
+    medium: &Medium,
+    source: &SourceView,
+    trajectory: &dyn Trajectory,
+    paths: &[PathKind],
+    receiver: &Receiver,
+    block: usize,
+    out: &mut [f32],
+) -> Result<(), OutsideWindow> {
+    let fs_src = source.sample_rate_hz;
+    let (src, d2, start, total) =
+        (source.samples, source.second_difference, source.start, source.total);
+    let end = start + src.len();
     let n_out = out.len();
     let blocks = n_out.div_ceil(block);
     // (source index, gain, absorption b) at a block boundary; None where the path is absent.
     let at = |n: usize, kind: &PathKind| -> Option<(f64, f64, f64)> {
         let t = receiver.t0_s + n as f64 * receiver.dt_s;
         let (tau, st) = medium.retarded(kind, trajectory, t, &receiver.position)?;
-        let q = (t - tau - receiver.extra_delay_s - source.signal.t0_s) * fs_src;
+        let q = (t - tau - receiver.extra_delay_s - source.t0_s) * fs_src;
         let r = st.length_m.max(0.05);
         Some((q, st.gain / r, medium.absorption_b(st.length_m, fs_src)))
     };
@@ -245,18 +303,30 @@ pub fn render(
             let seg = &mut out[n0..n1];
             let first = l.0.floor() as isize - 1;
             let last = r.0.ceil() as isize + 2;
-            if first >= 0 && (last as usize) < src.len() {
+            // What this segment reads (q is linear in j): the part inside the signal must lie
+            // in the window.
+            let q_end = l.0 + dq * (len - 1.0);
+            let read_lo = l.0.min(q_end).floor() as isize - 1;
+            let read_hi = l.0.max(q_end).floor() as isize + 2;
+            let (lo, hi) = (read_lo.max(0), read_hi.min(total as isize - 1));
+            if lo <= hi && (lo < start as isize || hi >= end as isize) {
+                return Err(OutsideWindow { needed_from: read_lo, needed_to: read_hi });
+            }
+            if first >= 0 && (last as usize) < total && read_lo >= 0 && (read_hi as usize) < total {
+                let from = read_lo as usize - start;
+                let (src, d2) = (&src[from..], &d2[from..]);
+                let base = read_lo as usize + 1;
                 for (j, y) in seg.iter_mut().enumerate() {
                     let jf = j as f64;
                     let q = l.0 + dq * jf;
                     // q ≥ 1 here, so truncation is the floor (and much cheaper than `floor`,
                     // a library call on baseline x86-64).
-                    let i = q as usize;
-                    let f = (q - i as f64) as f32;
+                    let i = q as usize - base;
+                    let f = (q - (q as usize) as f64) as f32;
                     let g = (l.1 + dg * jf) as f32;
                     let b = (l.2 + db * jf) as f32;
                     let c = lagrange4(f);
-                    let (w, v) = (&src[i - 1..i + 3], &d2[i - 1..i + 3]);
+                    let (w, v) = (&src[i..i + 4], &d2[i..i + 4]);
                     let s = c[0] * w[0] + c[1] * w[1] + c[2] * w[2] + c[3] * w[3];
                     let a = c[0] * v[0] + c[1] * v[1] + c[2] * v[2] + c[3] * v[3];
                     *y += g * (s + b * a);
@@ -264,8 +334,8 @@ pub fn render(
             } else {
                 // Near the ends of the source signal: read zeros outside it.
                 let get = |v: &[f32], k: isize| {
-                    if k >= 0 && (k as usize) < v.len() {
-                        v[k as usize]
+                    if k >= 0 && (k as usize) < total {
+                        v[k as usize - start]
                     } else {
                         0.0
                     }
@@ -290,6 +360,7 @@ pub fn render(
             left = right;
         }
     }
+    Ok(())
 }
 
 /// Cubic Lagrange weights for taps at −1, 0, 1, 2 and fractional position `f` ∈ [0, 1).

@@ -17,9 +17,23 @@
 //! truth_rate_hz = 100.0            # [100]
 //! [air]       temperature_c = 20.0, humidity_percent = 50.0, pressure_pa = 101325.0
 //! [drone]     preset = "dji-mini-2", plus any `DroneProfile` field to override it
-//! [path]      kind = "square" | "waypoints" | "hover"
+//! [airframe]  the population each run's airframe is drawn from (`profile::Population`; all
+//!             [0] = the nominal airframe): wake_spread (±fraction of the wake slope),
+//!             wake_curvature_per_mps, cg_offset_mm (largest CG offset), thrust_spread (±fraction
+//!             per motor), jitter_spread (±fraction per rotor), chipped_probability,
+//!             chipped_thrust_loss [0.03], chipped_line_db [10]
+//! [path]      kind = "square" | "waypoints" | "hover" | "smooth" | "circle" | "eight" | "walk"
 //!             square: side_m, start = [x, y], height_m, clockwise [false], loops [1]
 //!             waypoints: points = [[x, y, z], ...];  hover: position = [x, y, z]
+//!             (square and waypoints stop at every corner; the kinds below never stop)
+//!             smooth: points = [[x, y, z], ...] flown as one smooth spline (heights may change)
+//!             circle: centre = [x, y], radius_m, height_m, start_deg [-90] (start point's angle
+//!             from the centre), clockwise [false], loops [1]
+//!             eight: centre = [x, y], length_m, height_m, axis_deg [0], loops [1] (lemniscate of
+//!             Bernoulli: width length_m / 2√2, tightest radius length_m / 6)
+//!             walk (hand-flown random walk, fixed heading): position = [x, y, z] (start),
+//!             area_min = [x, y, z], area_max = [x, y, z], wander_s [40], walk_tau_s [2],
+//!             max_climb_mps [1], max_jerk_mps3 [3 × max_accel_mps2]; speed_mps is its top speed
 //!             speed_mps [1.5], max_accel_mps2 [1.0], hover_start_s [3], corner_pause_s [0.5],
 //!             hover_end_s [3], heading = "fixed" | "along-track" ["fixed"]
 //!             fixed: yaw_deg [0], the heading held throughout
@@ -32,7 +46,8 @@
 //! [diffuse_noise] spl_db, low_hz [100], high_hz [8000], directions [32]
 //! [[array]]   id, geometry ["respeaker-6mic"] or positions = [[x, y], ...], position = [x, y, z],
 //!             yaw_deg [0], clock_offset_s [0], clock_drift_ppm [0], self_noise_db [35],
-//!             gain_mismatch_db [0.3], phase_mismatch_us [2]
+//!             gain_mismatch_db [0.3], phase_mismatch_us [2], dead_mics [[]] (indices of
+//!             microphones that output 0), stuck_mics [[]] (indices stuck at a constant 5 Pa)
 //! [render]    rotor_sources = "each" | "direct" | "centre" ["direct"], block_samples [128],
 //!             control_rate_hz [1000], diffraction_ref_hz [500], absorption [true]
 //! ```
@@ -46,7 +61,7 @@ use crate::air::Air;
 use crate::array::{preset_positions, ArrayConfig, Clock, GEOMETRY_PRESETS};
 use crate::noise::{DiffuseNoise, NoiseSource};
 use crate::obstacle::Obstacle;
-use crate::path::{square, FlightPlan, Heading};
+use crate::path::{square, FlightPlan, Heading, Shape, Spline, WalkSpec};
 
 /// Default peak yaw rate of nose-first flight, °/s. DJI lists the Mini 2's maximum angular
 /// velocity as 130 °/s (Sport mode); its Normal mode turns at about 60 °/s; 90 °/s is between.
@@ -55,7 +70,7 @@ pub const DEFAULT_YAW_RATE_DPS: f64 = 90.0;
 /// turn of the simulated DJI Mini 2 (I_z 7.5e-4 kg·m², k_h/k_v 12 mm) needs about ±8 % of hover
 /// thrust between odd and even rotors (±4 % rotor speed), well inside the motors' headroom.
 pub const DEFAULT_YAW_ACCEL_DPS2: f64 = 180.0;
-use crate::profile::DroneProfile;
+use crate::profile::{DroneProfile, Population};
 use crate::room::Room;
 
 #[derive(Deserialize)]
@@ -102,6 +117,17 @@ struct FilePath {
     #[serde(default = "d_hover")]
     hover_end_s: f64,
     yaw_deg: Option<f64>,
+    centre: Option<[f64; 2]>,
+    radius_m: Option<f64>,
+    start_deg: Option<f64>,
+    length_m: Option<f64>,
+    axis_deg: Option<f64>,
+    area_min: Option<[f64; 3]>,
+    area_max: Option<[f64; 3]>,
+    wander_s: Option<f64>,
+    walk_tau_s: Option<f64>,
+    max_climb_mps: Option<f64>,
+    max_jerk_mps3: Option<f64>,
     heading: Option<String>,
     yaw_rate_dps: Option<f64>,
     yaw_accel_dps2: Option<f64>,
@@ -127,6 +153,38 @@ fn d_pause() -> f64 {
 enum Absorption {
     All(f64),
     Each([f64; 6]),
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct FileAirframe {
+    wake_spread: Option<f64>,
+    wake_curvature_per_mps: Option<f64>,
+    cg_offset_mm: Option<f64>,
+    thrust_spread: Option<f64>,
+    jitter_spread: Option<f64>,
+    chipped_probability: Option<f64>,
+    chipped_thrust_loss: Option<f64>,
+    chipped_line_db: Option<f64>,
+}
+
+impl FileAirframe {
+    fn population(&self) -> Result<Population, String> {
+        let d = Population::default();
+        let p = Population {
+            wake_spread: self.wake_spread.unwrap_or(d.wake_spread),
+            wake_curvature_per_mps: self.wake_curvature_per_mps.unwrap_or(d.wake_curvature_per_mps),
+            cg_offset_m: self.cg_offset_mm.map_or(d.cg_offset_m, |mm| mm * 1e-3),
+            thrust_spread: self.thrust_spread.unwrap_or(d.thrust_spread),
+            jitter_spread: self.jitter_spread.unwrap_or(d.jitter_spread),
+            chipped_probability: self.chipped_probability.unwrap_or(d.chipped_probability),
+            chipped_thrust_loss: self.chipped_thrust_loss.unwrap_or(d.chipped_thrust_loss),
+            chipped_line_db: self.chipped_line_db.unwrap_or(d.chipped_line_db),
+        };
+        p.validate()
+            .map_err(|e| e.replace("airframe.cg_offset_m", "airframe.cg_offset_mm (in m)"))?;
+        Ok(p)
+    }
 }
 
 #[derive(Deserialize)]
@@ -206,6 +264,10 @@ struct FileArray {
     gain_mismatch_db: f64,
     #[serde(default = "d_phase_mm")]
     phase_mismatch_us: f64,
+    #[serde(default)]
+    dead_mics: Vec<usize>,
+    #[serde(default)]
+    stuck_mics: Vec<usize>,
 }
 fn d_self_noise() -> f64 {
     35.0
@@ -244,6 +306,8 @@ struct File {
     truth_rate_hz: f64,
     air: Option<FileAir>,
     drone: toml::Table,
+    #[serde(default)]
+    airframe: FileAirframe,
     path: FilePath,
     room: Option<FileRoom>,
     #[serde(default)]
@@ -315,8 +379,10 @@ pub struct Scenario {
     pub truth_rate_hz: f64,
     /// The air.
     pub air: Air,
-    /// The drone.
+    /// The drone (its profile).
     pub drone: DroneProfile,
+    /// The population each run's airframe is drawn from (seeded by `seed`).
+    pub population: Population,
     /// Its flight plan.
     pub plan: FlightPlan,
     /// Heading it holds, rad (with `heading = "along-track"`, the plan's initial heading; the
@@ -383,6 +449,30 @@ impl Scenario {
             toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?
         };
         let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let mut s = Self::from_file(file, stem).map_err(|e| {
+            let text = std::fs::read_to_string(path).unwrap_or_default();
+            match key_line(&text, &e) {
+                Some(line) => anyhow!("{}:{line}: {e}", path.display()),
+                None => anyhow!("{}: {e}", path.display()),
+            }
+        })?;
+        s.source = Some(path.to_path_buf());
+        Ok(s)
+    }
+
+    /// Reads and checks a scenario file as [`Scenario::load`] does, with its `seed` replaced by
+    /// `seed` and the keys of `overrides` merged over its tables (e.g. an `[airframe]` table
+    /// from a bench suite). Every seed-dependent part (a random walk's course, the airframe
+    /// drawn) follows the new seed.
+    pub fn load_with(path: &Path, seed: u64, overrides: &toml::Table) -> anyhow::Result<Self> {
+        let (mut table, _) = load_table(path, 0)?;
+        merge(&mut table, overrides.clone());
+        table.insert("seed".into(), toml::Value::Integer(seed as i64));
+        table.remove("base");
+        let file: File = table
+            .try_into()
+            .map_err(|e| anyhow!("{} (with the suite's overrides): {e}", path.display()))?;
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let mut s = Self::from_file(file, stem).map_err(|e| anyhow!("{}: {e}", path.display()))?;
         s.source = Some(path.to_path_buf());
         Ok(s)
@@ -440,42 +530,13 @@ impl Scenario {
                 .map_err(|e: toml::de::Error| format!("drone: {}", e.message()))?,
         };
         drone.validate()?;
+        let population = f.airframe.population()?;
 
         let p = &f.path;
+        check_path_file(p)?;
         let need = |v: Option<f64>, key: &str| {
             v.ok_or_else(|| format!("path.{key} is required for kind `{}`", p.kind))
         };
-        let waypoints: Vec<Vector3<f64>> = match p.kind.as_str() {
-            "square" => {
-                let side = need(p.side_m, "side_m")?;
-                let height = need(p.height_m, "height_m")?;
-                let start = p.start.ok_or("path.start = [x, y] is required for kind `square`")?;
-                if !(side > 0.0 && height.is_finite()) {
-                    return Err("path.side_m must be positive".into());
-                }
-                square(start, side, height, p.clockwise, p.loops)
-            }
-            "waypoints" => p
-                .points
-                .as_ref()
-                .ok_or("path.points = [[x, y, z], ...] is required for kind `waypoints`")?
-                .iter()
-                .map(|q| Vector3::from(*q))
-                .collect(),
-            "hover" => vec![Vector3::from(
-                p.position.ok_or("path.position = [x, y, z] is required for kind `hover`")?,
-            )],
-            k => return Err(format!("path.kind `{k}` is unknown (square, waypoints, hover)")),
-        };
-        if waypoints.iter().flat_map(|w| w.iter()).any(|v| !v.is_finite()) {
-            return Err("path: waypoints must be finite".into());
-        }
-        if p.speed_mps > 20.0 {
-            return Err(format!(
-                "path.speed_mps {} is beyond what the drone model flies (20 m/s)",
-                p.speed_mps
-            ));
-        }
         let heading = match p.heading.as_deref().unwrap_or("fixed") {
             "fixed" => {
                 if p.yaw_rate_dps.is_some() || p.yaw_accel_dps2.is_some() {
@@ -507,15 +568,132 @@ impl Scenario {
             }
             h => return Err(format!("path.heading `{h}` is unknown (fixed, along-track)")),
         };
-        let plan = FlightPlan::new(
-            &waypoints,
-            p.speed_mps,
-            p.max_accel_mps2,
-            p.hover_start_s,
-            p.corner_pause_s,
-            p.hover_end_s,
-            heading,
-        )
+        if p.speed_mps > 20.0 {
+            return Err(format!(
+                "path.speed_mps {} is beyond what the drone model flies (20 m/s)",
+                p.speed_mps
+            ));
+        }
+        let height = || need(p.height_m, "height_m");
+        let centre =
+            || p.centre.ok_or(format!("path.centre = [x, y] is required for kind `{}`", p.kind));
+        let loops = p.loops.max(1);
+        let continuous = |shape: Shape| {
+            FlightPlan::continuous(
+                shape,
+                p.speed_mps,
+                p.max_accel_mps2,
+                p.hover_start_s,
+                p.hover_end_s,
+                heading,
+            )
+        };
+        let plan = match p.kind.as_str() {
+            "smooth" => {
+                let points: Vec<Vector3<f64>> = p
+                    .points
+                    .as_ref()
+                    .ok_or("path.points = [[x, y, z], ...] is required for kind `smooth`")?
+                    .iter()
+                    .map(|q| Vector3::from(*q))
+                    .collect();
+                if points.iter().flat_map(|w| w.iter()).any(|v| !v.is_finite()) {
+                    return Err("path: points must be finite".into());
+                }
+                let spline = Spline::through(&points)
+                    .ok_or("path.points: kind `smooth` needs at least two distinct points")?;
+                continuous(Shape::Spline(spline))
+            }
+            "circle" => {
+                let radius_m = need(p.radius_m, "radius_m")?;
+                if !(radius_m > 0.0 && radius_m.is_finite()) {
+                    return Err("path.radius_m must be positive".into());
+                }
+                continuous(Shape::Circle {
+                    centre: centre()?,
+                    height_m: height()?,
+                    radius_m,
+                    start_rad: p.start_deg.unwrap_or(-90.0).to_radians(),
+                    sense: if p.clockwise { -1.0 } else { 1.0 },
+                    loops,
+                })
+            }
+            "eight" => {
+                let length_m = need(p.length_m, "length_m")?;
+                if !(length_m > 0.0 && length_m.is_finite()) {
+                    return Err("path.length_m must be positive".into());
+                }
+                continuous(Shape::Eight {
+                    centre: centre()?,
+                    height_m: height()?,
+                    length_m,
+                    axis_rad: p.axis_deg.unwrap_or(0.0).to_radians(),
+                    loops,
+                })
+            }
+            "walk" => {
+                if heading != Heading::Fixed {
+                    return Err("path.heading: kind `walk` flies with a fixed heading".into());
+                }
+                let corner = |v: Option<[f64; 3]>, key: &str| {
+                    v.map(Vector3::from)
+                        .ok_or(format!("path.{key} = [x, y, z] is required for kind `walk`"))
+                };
+                let spec = WalkSpec {
+                    start: corner(p.position, "position")?,
+                    area_min: corner(p.area_min, "area_min")?,
+                    area_max: corner(p.area_max, "area_max")?,
+                    wander_s: p.wander_s.unwrap_or(40.0),
+                    tau_s: p.walk_tau_s.unwrap_or(2.0),
+                    max_speed_mps: p.speed_mps,
+                    max_climb_mps: p.max_climb_mps.unwrap_or(1.0),
+                    max_accel_mps2: p.max_accel_mps2,
+                    max_jerk_mps3: p.max_jerk_mps3.unwrap_or(3.0 * p.max_accel_mps2),
+                    seed: crate::sub_seed(f.seed, 3),
+                };
+                FlightPlan::walk(&spec, p.hover_start_s, p.hover_end_s)
+            }
+            _ => {
+            let waypoints: Vec<Vector3<f64>> = match p.kind.as_str() {
+                "square" => {
+                    let side = need(p.side_m, "side_m")?;
+                    let height = need(p.height_m, "height_m")?;
+                    let start = p.start.ok_or("path.start = [x, y] is required for kind `square`")?;
+                    if !(side > 0.0 && height.is_finite()) {
+                        return Err("path.side_m must be positive".into());
+                    }
+                    square(start, side, height, p.clockwise, p.loops)
+                }
+                "waypoints" => p
+                    .points
+                    .as_ref()
+                    .ok_or("path.points = [[x, y, z], ...] is required for kind `waypoints`")?
+                    .iter()
+                    .map(|q| Vector3::from(*q))
+                    .collect(),
+                "hover" => vec![Vector3::from(
+                    p.position.ok_or("path.position = [x, y, z] is required for kind `hover`")?,
+                )],
+                k => {
+                        return Err(format!(
+                            "path.kind `{k}` is unknown (square, waypoints, hover, smooth, circle, eight, walk)"
+                        ))
+                    }
+            };
+            if waypoints.iter().flat_map(|w| w.iter()).any(|v| !v.is_finite()) {
+                return Err("path: waypoints must be finite".into());
+            }
+            FlightPlan::new(
+                &waypoints,
+                p.speed_mps,
+                p.max_accel_mps2,
+                p.hover_start_s,
+                p.corner_pause_s,
+                p.hover_end_s,
+                heading,
+            )
+            }
+        }
         .map_err(|e| format!("path: {e}"))?;
         let yaw_rad =
             plan.heading_at(0.0).map_or(p.yaw_deg.unwrap_or(0.0).to_radians(), |h| h.yaw_rad);
@@ -614,7 +792,19 @@ impl Scenario {
                 self_noise_db: a.self_noise_db,
                 gain_mismatch_db: a.gain_mismatch_db,
                 phase_mismatch_us: a.phase_mismatch_us,
+                dead_mics: a.dead_mics.clone(),
+                stuck_mics: a.stuck_mics.clone(),
             };
+            if let Some(m) =
+                cfg.dead_mics.iter().chain(&cfg.stuck_mics).find(|&&m| m >= cfg.positions.len())
+            {
+                return Err(format!(
+                    "array {}: dead_mics/stuck_mics name microphone {m}, but it has {} (0..{})",
+                    a.id,
+                    cfg.positions.len(),
+                    cfg.positions.len()
+                ));
+            }
             cfg.validate()?;
             arrays.push(cfg);
         }
@@ -639,7 +829,7 @@ impl Scenario {
             return Err("truth_rate_hz must be positive and at most render.control_rate_hz".into());
         }
 
-        Ok(Self {
+        let scenario = Self {
             name: f.name.unwrap_or(stem),
             description: f.description,
             source: None,
@@ -649,6 +839,7 @@ impl Scenario {
             truth_rate_hz: f.truth_rate_hz,
             air,
             drone,
+            population,
             plan,
             yaw_rad,
             room,
@@ -657,8 +848,268 @@ impl Scenario {
             diffuse_noise,
             arrays,
             render,
-        })
+        };
+        scenario.check_limits()?;
+        Ok(scenario)
     }
+}
+
+/// Largest coordinate accepted anywhere in a scenario (waypoints, arrays, noise sources,
+/// obstacles), m.
+pub const MAX_COORDINATE_M: f64 = 10_000.0;
+/// Longest side of a room or of a square path, m.
+pub const MAX_SIDE_M: f64 = 1000.0;
+/// Most loops of a square path (the duration limit ends a run long before).
+pub const MAX_LOOPS: u32 = 1000;
+/// Most waypoints of a path.
+pub const MAX_WAYPOINTS: usize = 10_000;
+/// Most plane waves of the diffuse noise field (each is a full-length source signal).
+pub const MAX_DIFFUSE_DIRECTIONS: usize = 1024;
+/// Loudest level accepted for any source, dB SPL (beyond the threshold of pain; the
+/// microphones clip at 120 dB).
+pub const MAX_SPL_DB: f64 = 150.0;
+
+/// `value` within `range`, else a message naming `key` (`path.loops 4000000000 must be 1 to
+/// 1000`); `key` leads the message so that [`key_line`] finds its line.
+fn within<T: PartialOrd + std::fmt::Debug + Copy>(
+    key: &str,
+    value: T,
+    range: std::ops::RangeInclusive<T>,
+    unit: &str,
+) -> Result<T, String> {
+    if range.contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("{key} {value:?} must be {:?} to {:?} {unit}", range.start(), range.end()))
+    }
+}
+
+/// Every coordinate of `p` finite and within [`MAX_COORDINATE_M`].
+fn point(key: &str, p: &[f64]) -> Result<(), String> {
+    if p.iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M) {
+        Ok(())
+    } else {
+        Err(format!("{key} {p:?} must be finite and within {MAX_COORDINATE_M} m of the origin"))
+    }
+}
+
+/// The `[path]` table's numbers, checked before any waypoint is built from them.
+fn check_path_file(p: &FilePath) -> Result<(), String> {
+    within("path.loops", p.loops, 1..=MAX_LOOPS, "")?;
+    if let Some(side) = p.side_m {
+        if !(side > 0.0 && side <= MAX_SIDE_M) {
+            return Err(format!(
+                "path.side_m {side:?} must be positive and at most {MAX_SIDE_M} m"
+            ));
+        }
+    }
+    if let Some(h) = p.height_m {
+        within("path.height_m", h, -MAX_SIDE_M..=MAX_SIDE_M, "m")?;
+    }
+    if let Some(start) = p.start {
+        point("path.start", &start)?;
+    }
+    if let Some(points) = &p.points {
+        within("path.points", points.len(), 1..=MAX_WAYPOINTS, "waypoints")?;
+        for q in points {
+            point("path.points", q)?;
+        }
+    }
+    if let Some(q) = p.position {
+        point("path.position", &q)?;
+    }
+    if !(p.speed_mps > 0.0 && p.speed_mps <= 20.0) {
+        return Err(format!(
+            "path.speed_mps {:?} must be positive and at most 20 m/s (what the drone model flies)",
+            p.speed_mps
+        ));
+    }
+    within("path.max_accel_mps2", p.max_accel_mps2, 0.1..=20.0, "m/s²")?;
+    within("path.hover_start_s", p.hover_start_s, 0.0..=3600.0, "s")?;
+    within("path.corner_pause_s", p.corner_pause_s, 0.0..=3600.0, "s")?;
+    within("path.hover_end_s", p.hover_end_s, 0.0..=3600.0, "s")?;
+    if let Some(yaw) = p.yaw_deg {
+        within("path.yaw_deg", yaw, -360.0..=360.0, "degrees")?;
+    }
+    Ok(())
+}
+
+impl Scenario {
+    /// Range checks beyond each part's own `validate`: sizes, levels, inertias and counts that
+    /// would exhaust memory, overflow the physics or give NaN audio, and what the on-chip
+    /// pipeline (`aim_dsp::Config::validate`) would refuse only after the whole simulation.
+    fn check_limits(&self) -> Result<(), String> {
+        let d = &self.drone;
+        within("drone.mass_kg", d.mass_kg, 0.01..=100.0, "kg")?;
+        within("drone.arm_m", d.arm_m, 0.01..=5.0, "m")?;
+        within("drone.hover_rotor_hz", d.hover_rotor_hz, 10.0..=1000.0, "Hz")?;
+        within("drone.max_rotor_hz", d.max_rotor_hz, 10.0..=2000.0, "Hz")?;
+        within("drone.torque_to_thrust_m", d.torque_to_thrust_m, 1e-4..=1.0, "m")?;
+        for (i, &inertia) in d.inertia_kgm2.iter().enumerate() {
+            within(&format!("drone.inertia_kgm2[{i}]"), inertia, 1e-6..=100.0, "kg·m²")?;
+        }
+        within("drone.drag_h", d.drag_h, 0.0..=100.0, "N·s²/m²")?;
+        within("drone.drag_v", d.drag_v, 0.0..=100.0, "N·s²/m²")?;
+        within("drone.motor_time_constant_s", d.motor_time_constant_s, 1e-4..=10.0, "s")?;
+        within("drone.rotor_jitter", d.rotor_jitter, 0.0..=0.5, "")?;
+        within("drone.rotor_jitter_time_s", d.rotor_jitter_time_s, 1e-3..=100.0, "s")?;
+        within("drone.wake_loss_per_mps", d.wake_loss_per_mps, 0.0..=0.2, "per m/s")?;
+        within("drone.spl_1m_db", d.spl_1m_db, 0.0..=MAX_SPL_DB, "dB")?;
+        within("drone.harmonic_slope_db", d.harmonic_slope_db, -60.0..=20.0, "dB")?;
+        within("drone.shaft_line_db", d.shaft_line_db, -100.0..=20.0, "dB")?;
+        within("drone.broadband_db", d.broadband_db, -100.0..=20.0, "dB")?;
+        within("drone.level_exponent", d.level_exponent, 0.01..=10.0, "")?;
+        within("drone.blades", d.blades, 1..=8, "")?;
+        within("drone.bpf_harmonics", d.bpf_harmonics, 1..=64, "")?;
+        if let Some(room) = &self.room {
+            for (i, &l) in room.size_m.iter().enumerate() {
+                within(&format!("room.size_m[{i}]"), l, 0.1..=MAX_SIDE_M, "m")?;
+            }
+        }
+        for o in &self.obstacles {
+            point(&format!("obstacle.min (`{}`)", o.name), o.min.as_slice())?;
+            point(&format!("obstacle.max (`{}`)", o.name), o.max.as_slice())?;
+            within(&format!("obstacle.loss_db (`{}`)", o.name), o.loss_db, 0.0..=200.0, "dB")?;
+        }
+        for (k, n) in self.noise.iter().enumerate() {
+            point(&format!("noise[{k}].position"), n.position_m.as_slice())?;
+            within(&format!("noise[{k}].spl_db"), n.spl_db, -50.0..=MAX_SPL_DB, "dB")?;
+            within(&format!("noise[{k}].distance_m"), n.distance_m, 0.01..=1000.0, "m")?;
+        }
+        if let Some(dn) = &self.diffuse_noise {
+            within("diffuse_noise.spl_db", dn.spl_db, -50.0..=MAX_SPL_DB, "dB")?;
+            within("diffuse_noise.directions", dn.directions, 1..=MAX_DIFFUSE_DIRECTIONS, "")?;
+        }
+        for (k, a) in self.arrays.iter().enumerate() {
+            let key = |name: &str| format!("array[{k}].{name}");
+            point(&key("position"), a.position_m.as_slice())?;
+            if let Some(room) = &self.room {
+                if !room.contains(&a.position_m) {
+                    return Err(format!(
+                        "{} {:?} (array {}) is outside the room [0, 0, 0]..{:?}",
+                        key("position"),
+                        a.position_m.as_slice(),
+                        a.id,
+                        room.size_m
+                    ));
+                }
+            }
+            within(&key("yaw_deg"), a.yaw_rad.to_degrees(), -360.0..=360.0, "degrees")?;
+            within(&key("self_noise_db"), a.self_noise_db, -50.0..=120.0, "dB")?;
+            within(&key("gain_mismatch_db"), a.gain_mismatch_db, 0.0..=6.0, "dB")?;
+            within(&key("phase_mismatch_us"), a.phase_mismatch_us, 0.0..=100.0, "µs")?;
+            // What `fly` and `analyze` will run: the same configuration `eval::link` builds.
+            let positions: Vec<[f32; 2]> =
+                a.positions.iter().map(|p| [p[0] as f32, p[1] as f32]).collect();
+            aim_dsp::Geometry::from_positions(&positions)
+                .and_then(|g| aim_dsp::Config::new(g, self.sample_rate_hz).validate())
+                .map_err(|e| {
+                    format!(
+                        "{} (array {}): the on-chip pipeline refuses this array at {} Hz: {e}",
+                        key("positions"),
+                        a.id,
+                        self.sample_rate_hz
+                    )
+                })?;
+        }
+        if let Some(room) = &self.room {
+            let t_end = self.plan.duration_s();
+            let n = 200;
+            for i in 0..=n {
+                let p = self.plan.at(t_end * i as f64 / n as f64).position;
+                if !room.contains(&p) {
+                    return Err(format!(
+                        "path leaves the room [0, 0, 0]..{:?} (at {:?})",
+                        room.size_m,
+                        p.as_slice()
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Memory a streamed simulation of this scenario (`host-sim simulate`, `host-sim fly`)
+    /// needs at its peak, bytes (an estimate, on the high side): every source's window of
+    /// signal and second difference (f32 over one output block, the longest path's delay and the
+    /// clocks' spread, with room for the window's growth), one output block per microphone, the
+    /// flight log at the control rate and the truth rows, the two that still grow with the
+    /// duration. [`Self::recordings_bytes`] more when the recordings are kept in memory
+    /// (`host_sim::simulate_with`).
+    pub fn memory_estimate_bytes(&self) -> u64 {
+        let fs = f64::from(self.sample_rate_hz);
+        let offsets = self.arrays.iter().map(|a| a.clock.offset_s);
+        let spread = offsets.clone().fold(0.0f64, f64::max) - offsets.fold(0.0f64, f64::min);
+        // Pre-roll: the longest path (room diagonal times the reflection order) at 343 m/s,
+        // with the renderer's margin.
+        let pre_roll = self.room.as_ref().map_or(0.5, |r| {
+            let diagonal = r.size_m.iter().map(|l| l * l).sum::<f64>().sqrt();
+            diagonal * (2.0 * f64::from(r.reflection_order) + 2.0) / 343.0 + 0.05
+        });
+        let block_s = crate::OUTPUT_BLOCK as f64 / fs;
+        let window = (block_s + spread + 1.25 * pre_roll + 0.1) * fs;
+        let rotors = self.drone.rotor_count() as f64;
+        let rotor_emitters = match self.render.rotor_sources {
+            RotorSources::Each => rotors,
+            RotorSources::Direct => rotors + 1.0,
+            RotorSources::Centre => 1.0,
+        };
+        let emitters = rotor_emitters
+            + self.noise.len() as f64
+            + self.diffuse_noise.as_ref().map_or(0.0, |d| d.directions as f64);
+        let mics: usize = self.arrays.iter().map(|a| a.positions.len()).sum();
+        // Signal and second difference per emitter (a window's vector may hold up to twice
+        // what it uses), the rotors' block, and one output block per microphone.
+        let samples =
+            window * (2.0 * 2.0 * emitters + rotors) + crate::OUTPUT_BLOCK as f64 * mics as f64;
+        // The flight log (~400 B per control step) and the truth (~300 B per row).
+        let span = self.duration_s + spread + pre_roll;
+        let log = span * self.render.control_rate_hz * 400.0 + span * self.truth_rate_hz * 300.0;
+        (samples * 4.0 + log) as u64
+    }
+
+    /// Memory of every microphone's whole recording (f32), bytes.
+    pub fn recordings_bytes(&self) -> u64 {
+        let mics: usize = self.arrays.iter().map(|a| a.positions.len()).sum();
+        (self.duration_s * f64::from(self.sample_rate_hz)) as u64 * mics as u64 * 4
+    }
+}
+
+/// The line of `text` holding the key an error message starts with (`path.loops …`,
+/// `array[1].position …`, `duration_s …`): the first whitespace-separated word, as
+/// `table.key`, `table[k].key` (the k-th `[[table]]`) or a top-level `key`; None when the key
+/// is not in the text (a default, or set in a `base` file).
+pub fn key_line(text: &str, message: &str) -> Option<usize> {
+    let word = message.split_whitespace().next()?.trim_end_matches(':');
+    let (table, index, key) = match word.split_once('.') {
+        Some((table, key)) => match table.split_once('[') {
+            Some((t, rest)) => (t, rest.trim_end_matches(']').parse::<usize>().ok(), key),
+            None => (table, None, key),
+        },
+        None => ("", None, word),
+    };
+    let key = key.split('[').next()?;
+    let mut header = String::new();
+    let mut seen = std::collections::HashMap::<String, usize>::new();
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if let Some(name) = l.strip_prefix("[[").and_then(|r| r.split("]]").next()) {
+            header = name.trim().to_string();
+            *seen.entry(header.clone()).or_insert(0) += 1;
+            continue;
+        }
+        if let Some(name) = l.strip_prefix('[').and_then(|r| r.split(']').next()) {
+            header = name.trim().to_string();
+            continue;
+        }
+        let in_table =
+            header == table && index.is_none_or(|k| seen.get(table).copied() == Some(k + 1));
+        let is_key = l.strip_prefix(key).is_some_and(|rest| rest.trim_start().starts_with('='));
+        if in_table && is_key {
+            return Some(i + 1);
+        }
+    }
+    None
 }
 
 #[cfg(test)]

@@ -12,8 +12,6 @@
 //! positions = [[0.0463, 0.0], ...] # microphone positions in the array frame, m (always written)
 //! position = [8.0, 2.0, 0.05]     # array centre, ENU m
 //! yaw_deg = 0.0                   # array x axis from ENU +x towards +y, degrees; array faces up
-//! clock_offset_s = 0.0            # optional: true time of the array's sample 0 (simulation only)
-//! clock_drift_ppm = 0.0           # optional: the array's clock rate error (simulation only)
 //!
 //! [room]                          # optional
 //! size = [16.0, 16.0, 5.0]        # shoebox [0, Lx] × [0, Ly] × [0, Lz], m
@@ -28,6 +26,10 @@
 //! Array frame: x right, y forward, z up (normal); azimuth from +x towards +y, zenith from +z.
 //! A reader needs `id`, `positions` (or a known `geometry`), `position` and `yaw_deg`; the rest
 //! is information.
+//!
+//! Only what a real site knows goes here: the arrays' clock offsets and drifts and the drone's
+//! airframe are simulation truth (`truth.toml`, [`crate::truth::Truth::to_toml`]); the tracker
+//! times frames by each array's own sample clock.
 use std::path::Path;
 
 use anyhow::Context as _;
@@ -47,12 +49,6 @@ pub struct SiteArray {
     pub position: [f64; 3],
     /// Rotation of the array's x axis from ENU +x towards +y, degrees.
     pub yaw_deg: f64,
-    /// True time of the array's sample 0, s (simulation knowledge; 0 if absent).
-    #[serde(default)]
-    pub clock_offset_s: f64,
-    /// Clock rate error, ppm (simulation knowledge; 0 if absent).
-    #[serde(default)]
-    pub clock_drift_ppm: f64,
 }
 
 /// The room, as far as the site file tells it.

@@ -5,7 +5,14 @@
 //! `rotor1_hz .. rotorN_hz` (rotor speeds in revolutions per second, paper numbering; times the
 //! blade count gives each rotor's BPF), then `los_<id>` per array (1 when the straight line from
 //! the drone's centre to the array centre crosses no obstacle).
+//!
+//! `truth.toml` ([`Truth::to_toml`]) holds the rest of what only the simulation knows: each
+//! array's sample clock against true time and the airframe the run drew from its population.
+//! Neither reaches the site file.
 use std::fmt::Write as _;
+
+use crate::array::Clock;
+use crate::profile::Airframe;
 
 /// One row of the truth.
 #[derive(Clone, Debug, PartialEq)]
@@ -37,11 +44,43 @@ pub struct Truth {
     pub blades: u32,
     /// Array ids of the `los` columns.
     pub array_ids: Vec<u8>,
+    /// Each array's sample clock against true time, in the order of `array_ids` (empty: every
+    /// array on true time).
+    pub clocks: Vec<Clock>,
+    /// The airframe flown, if known.
+    pub airframe: Option<Airframe>,
     /// Rows in time order.
     pub rows: Vec<TruthRow>,
 }
 
 impl Truth {
+    /// True time, s, of the instant array number `array_index` (order of `array_ids`) calls
+    /// `t_array` seconds by its own sample clock (sample index over nominal rate).
+    pub fn true_time(&self, array_index: usize, t_array: f64) -> f64 {
+        self.clocks
+            .get(array_index)
+            .map_or(t_array, |c| c.offset_s + t_array / (1.0 + c.drift_ppm * 1e-6))
+    }
+
+    /// `truth.toml`: every array's clock (`[[array]]` id, clock_offset_s, clock_drift_ppm) and
+    /// the airframe (`[airframe]`, [`Airframe`]'s fields).
+    pub fn to_toml(&self) -> String {
+        let mut s = String::from(
+            "# AIM simulation truth: what only the simulator knows (never in site.toml).\n",
+        );
+        if let Some(a) = &self.airframe {
+            let _ = writeln!(s, "[airframe]\n{}", a.to_toml());
+        }
+        for (id, c) in self.array_ids.iter().zip(&self.clocks) {
+            let _ = writeln!(
+                s,
+                "[[array]]\nid = {id}\nclock_offset_s = {:?}\nclock_drift_ppm = {:?}\n",
+                c.offset_s, c.drift_ppm
+            );
+        }
+        s
+    }
+
     /// The CSV text (header row first).
     pub fn to_csv(&self) -> String {
         let rotors = self.rows.first().map_or(0, |r| r.rotor_hz.len());

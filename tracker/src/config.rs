@@ -68,7 +68,45 @@ pub fn check(
         Err(ConfigError {
             path: path.to_path_buf(),
             line: Some(line_of(text, value.span().start)),
-            message: format!("{what} (got {v})"),
+            message: format!("{what} (got {v:?})"),
         })
+    }
+}
+
+/// Checks a number given on the command line: finite and within `range`, else an error that
+/// names the flag, the range and the value (`--period must be 0.001 to 60.0 s, not 1e-12`).
+pub fn check_flag(
+    value: f64,
+    flag: &str,
+    range: std::ops::RangeInclusive<f64>,
+    unit: &str,
+) -> anyhow::Result<f64> {
+    if value.is_finite() && range.contains(&value) {
+        Ok(value)
+    } else {
+        anyhow::bail!(
+            "{flag} must be {:?} to {:?} {unit}, not {value:?}",
+            range.start(),
+            range.end()
+        )
+    }
+}
+
+/// Range of `aim replay`/`aim track --period`, s: one fix per millisecond at most (a finer
+/// period only repeats the filter's prediction and, over a long run, fills memory with fixes),
+/// one a minute at least.
+pub const PERIOD_RANGE_S: std::ops::RangeInclusive<f64> = 1e-3..=60.0;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flags_out_of_range_name_the_flag() {
+        for bad in [1e-12, 0.0, -1.0, f64::NAN, f64::INFINITY, 1e9] {
+            let e = check_flag(bad, "--period", PERIOD_RANGE_S, "s").unwrap_err().to_string();
+            assert!(e.starts_with("--period must be 0.001 to 60.0 s, not "), "{e}");
+        }
+        assert_eq!(check_flag(0.1, "--period", PERIOD_RANGE_S, "s").unwrap(), 0.1);
     }
 }

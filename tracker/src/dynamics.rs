@@ -322,8 +322,9 @@ mod tests {
     fn wake_speed_inverts_the_wake_model() {
         // A quad X at 1.5 m/s with 2 % loss per m/s: the two rear rotors (0.707 downstream
         // each) lose 2.12 % of thrust and spin up to make it back: Σ f² rises by their
-        // 1/(1 − loss) − 1 ≈ 2.17 %, i.e. ρ − 1 = 2.17 % / 2.
-        let p = Profile::dji_mini_2();
+        // 1/(1 − loss) − 1 ≈ 2.17 %, i.e. ρ − 1 = 2.17 % / 2. (The bundled profile has no
+        // wake constant; the test drone is given one.)
+        let p = Profile { wake_loss_per_mps: 0.02, ..Profile::dji_mini_2() };
         let loss = 0.02 * std::f64::consts::FRAC_1_SQRT_2 * 1.5;
         let excess = (2.0 / (1.0 - loss) + 2.0) / 4.0 - 1.0;
         let v = speed_from_wake(excess, p.wake_excess_per_mps()).unwrap();
@@ -351,7 +352,7 @@ mod tests {
         assert!((ah - G * gamma.tan()).abs() < 1e-9);
         // Yaw: equal pairs give no angular acceleration.
         assert_eq!(
-            yaw_acceleration(p.k_h, 2, p.i_z, 2.0 * 330.0f64.powi(2), 2.0 * 330.0f64.powi(2)),
+            yaw_acceleration(2.72e-7, 2, 7.5e-4, 2.0 * 330.0f64.powi(2), 2.0 * 330.0f64.powi(2)),
             0.0
         );
     }

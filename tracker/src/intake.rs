@@ -1,76 +1,489 @@
-//! Decoded wire frames → tracker inputs: sample indices become seconds (the array's clock
-//! through the site's offset and drift), wire units become radians, samples and linear
-//! amplitudes.
+//! Decoded wire frames → tracker inputs in sample-time order, on one host time base.
+//!
+//! The one intake of `aim track`, `aim replay` and `host-sim fly` (through
+//! [`crate::session::Session`]). Per array it keeps:
+//!
+//! - **a time base per boot** (an *epoch*): sample indices become host seconds through the site
+//!   file's clock offset and drift ([`crate::site::ArrayPose::sample_time`]) for the first boot.
+//!   A reboot starts a new epoch in one of two ways: a `Hello` whose boot count differs from the
+//!   array's previous `Hello` (at once: everything the old boot left in the reorder stage is
+//!   released first), or, when that `Hello` was lost, the sample index jumping back (a restarted
+//!   board counts from 0 again) once [`IntakeConfig::confirm_frames`] frames agree on the new
+//!   count. The link carries no wall time, so the new epoch's first frame is placed
+//!   [`IntakeConfig::epoch_gap_s`] after the previous epoch's last audio (the real pause is
+//!   unknown; the tracker restarts across it).
+//! - **a plausibility window**: a frame must end no earlier than
+//!   [`IntakeConfig::window_behind_s`] before the newest audio and start no later than
+//!   [`IntakeConfig::window_ahead_s`] after it. A frame outside is held aside; if
+//!   `confirm_frames` frames agree with each other there, the stream really moved (a silence in
+//!   the same boot, or a reboot); otherwise they are counted as out of window and dropped — a
+//!   single frame never moves the time base.
+//! - **a bounded reorder stage**: the firmware sends each output when its span ends, but stamps
+//!   it at the span's middle, so a `Peaks` frame (0.512 s span) arrives after `Doa` frames
+//!   (0.171 s) that describe later instants. Inputs are held until a frame ending
+//!   [`IntakeConfig::reorder_s`] after their stamp has arrived, then released in stamp order. This
+//!   adds up to `reorder_s` (0.3 s) of latency; an input older than what was already released is
+//!   counted as late and dropped.
+//!
+//! `Hello` frames are checked against the site file: a sample rate or microphone geometry that
+//! contradicts it is an [`IntakeError`] naming both values. Every frame set aside is counted
+//! in [`IntakeStats`].
 
 use std::collections::HashMap;
 
-use aim_wire::{Body, Frame};
+use aim_wire::{Body, Frame, Hello};
 
 use crate::observation::{Bearing, BpfPeak, Input, Spectrum};
-use crate::site::Site;
+use crate::site::{ArrayPose, Site};
 
-/// Converts frames of the arrays of one site.
-#[derive(Clone, Debug)]
-pub struct FrameConverter {
-    site: Site,
-    default_rate_hz: u32,
-    rates: HashMap<u8, u32>,
-    /// Frames from arrays missing in the site.
-    pub unknown_array_frames: u64,
+/// Sample rate assumed before any `Hello` when the site file gives none, Hz.
+pub const DEFAULT_SAMPLE_RATE_HZ: u32 = 48_000;
+
+/// Sample rates a `Hello` may announce without the site file giving one, Hz.
+pub const PLAUSIBLE_RATES_HZ: std::ops::RangeInclusive<u32> = 4_000..=384_000;
+
+/// Tunables of the intake.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IntakeConfig {
+    /// Hold of the reorder stage, s: an input is released once a frame of its array ending at
+    /// least this long after the input's stamp has arrived. The longest frame of the firmware
+    /// (`Peaks`, 0.512 s stamped at its middle) lags the newest audio by 0.256 s.
+    pub reorder_s: f64,
+    /// A frame ending more than this before the newest audio of its epoch is out of window, s
+    /// (`Peaks` end with the newest audio; the span is checked separately).
+    pub window_behind_s: f64,
+    /// A frame starting more than this after the newest audio of its epoch is out of window, s.
+    pub window_ahead_s: f64,
+    /// Frames that must agree with each other outside the window before the time base follows
+    /// them (a silence or a reboot), and before the first time base is set.
+    pub confirm_frames: usize,
+    /// Longest span a `Doa` or `Peaks` frame may claim, s.
+    pub max_span_s: f64,
+    /// Host time between the last audio of one epoch and the first of the next, s.
+    pub epoch_gap_s: f64,
 }
 
-impl FrameConverter {
-    /// A converter for `site`; sample rates come from each array's `Hello`, until then from
-    /// the site file, else 48 kHz.
-    pub fn new(site: Site) -> Self {
-        let default_rate_hz = site.sample_rate_hz.unwrap_or(48_000);
-        Self { site, default_rate_hz, rates: HashMap::new(), unknown_array_frames: 0 }
+impl Default for IntakeConfig {
+    fn default() -> Self {
+        Self {
+            reorder_s: 0.3,
+            window_behind_s: 1.0,
+            window_ahead_s: 2.0,
+            confirm_frames: 3,
+            max_span_s: 1.0,
+            epoch_gap_s: 5.0,
+        }
+    }
+}
+
+/// Counts of what the intake did with the frames it was given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct IntakeStats {
+    /// Frames given to the intake.
+    pub frames: u64,
+    /// Inputs (bearings and BPF spectra) released in time order.
+    pub inputs: u64,
+    /// Frames from arrays not in the site file.
+    pub unknown_array: u64,
+    /// `Hello` frames that agreed with the site file.
+    pub hellos: u64,
+    /// Time bases started after an array's first (reboots: a `Hello` with a new boot count, or
+    /// the sample index went back).
+    pub new_epochs: u64,
+    /// Of [`Self::new_epochs`], those a `Hello` with a new boot count announced.
+    pub reboots_announced: u64,
+    /// Silences the time base followed within one boot (the sample index jumped ahead).
+    pub gaps: u64,
+    /// Frames outside the expected window that no later frames confirmed: set aside.
+    pub out_of_window: u64,
+    /// Frames whose span is longer than [`IntakeConfig::max_span_s`]: set aside.
+    pub bad_span: u64,
+    /// Inputs older than what the reorder stage had already released: dropped.
+    pub late: u64,
+}
+
+/// A `Hello` that contradicts the site file (or an earlier `Hello` of the same array).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum IntakeError {
+    /// Sample rates differ.
+    #[error("array {array}: its Hello announces a sample rate of {hello_hz} Hz, {expected}")]
+    SampleRate {
+        /// Array id.
+        array: u16,
+        /// The Hello's rate, Hz.
+        hello_hz: u32,
+        /// What it contradicts, in words with the value.
+        expected: String,
+    },
+    /// Microphone positions differ.
+    #[error(
+        "array {array}: its Hello gives microphone positions {hello:?} m, the site file {site:?} m"
+    )]
+    Geometry {
+        /// Array id.
+        array: u16,
+        /// The Hello's positions, m.
+        hello: Vec<[f64; 2]>,
+        /// The site file's positions, m.
+        site: Vec<[f64; 2]>,
+    },
+}
+
+/// What the intake hands on, in order.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Released {
+    /// An array sent audio over `[from_s, to_s]` (host time): the span of an accepted frame.
+    /// Comes when the frame is accepted, before its input is released.
+    Audio {
+        /// Array id.
+        array_id: u16,
+        /// Start, s.
+        from_s: f64,
+        /// End, s.
+        to_s: f64,
+    },
+    /// An input, in stamp order per array.
+    Input(Input),
+    /// No input of `array_id` stamped before `t` will follow.
+    Until {
+        /// Array id.
+        array_id: u16,
+        /// Time, s.
+        t: f64,
+    },
+}
+
+/// One epoch's mapping and extent.
+#[derive(Clone, Copy, Debug)]
+struct Timeline {
+    /// Added to the site file's mapping of the sample index, s.
+    shift_s: f64,
+    /// Newest end of audio accepted, sample index.
+    newest_end: u64,
+}
+
+impl Timeline {
+    /// Host time of the newest audio accepted, s (`fs`: the array's rate, Hz).
+    fn newest_s(&self, pose: &ArrayPose, fs: f64) -> f64 {
+        pose.sample_time(self.newest_end as f64, fs) + self.shift_s
     }
 
-    /// The tracker input a frame carries, if any (`Hello` updates the sample rate, `Health`
-    /// carries no observation).
-    pub fn convert(&mut self, frame: &Frame) -> Option<Input> {
-        let id = frame.header.array_id;
-        let Some(array) = self.site.array(u16::from(id)) else {
-            self.unknown_array_frames += 1;
-            return None;
-        };
-        let fs = f64::from(*self.rates.get(&id).unwrap_or(&self.default_rate_hz));
-        // An output describes the samples [index, index + span): it is stamped at their middle.
-        let time = |span: u32| {
-            array.sample_time(frame.header.sample_index as f64 + 0.5 * f64::from(span), fs)
-        };
-        match &frame.body {
-            Body::Hello(h) => {
-                if h.sample_rate_hz > 0 {
-                    self.rates.insert(id, h.sample_rate_hz);
-                }
-                None
-            }
-            Body::Doa(d) => Some(Input::Bearing(Bearing {
-                t: time(d.span_samples),
-                array_id: u16::from(id),
-                azimuth_rad: f64::from(d.azimuth_rad()),
-                zenith_rad: f64::from(d.zenith_rad()),
-                residual: f64::from(d.residual_samples()),
-                quality: f64::from(d.quality()),
-            })),
-            Body::Peaks(p) => Some(Input::Spectrum(Spectrum {
-                t: time(p.span_samples),
-                array_id: u16::from(id),
-                // "No rotor signature": no groups (the chip's detection decision stands).
-                peaks: p
-                    .peaks
-                    .iter()
-                    .filter(|q| p.is_rotor() && q.freq_hz() > 0.0)
-                    .map(|q| BpfPeak {
-                        hz: f64::from(q.freq_hz()),
-                        amplitude: 10f64.powf(f64::from(q.amplitude_db()) / 20.0),
-                    })
-                    .collect(),
-            })),
-            _ => None,
+    /// The next epoch (a reboot), whose first frame starts at sample index `first`: placed
+    /// `gap_s` after this epoch's newest audio.
+    fn next_epoch(&self, pose: &ArrayPose, fs: f64, first: u64, gap_s: f64) -> Timeline {
+        let shift_s = self.newest_s(pose, fs) + gap_s - pose.sample_time(first as f64, fs);
+        Timeline { shift_s, newest_end: first }
+    }
+}
+
+/// Everything the intake keeps of one array.
+#[derive(Clone, Debug, Default)]
+struct ArrayState {
+    /// Sample rate from the site file or the first `Hello`, Hz.
+    rate_hz: Option<u32>,
+    timeline: Option<Timeline>,
+    /// Frames outside the window that agree with each other, oldest first.
+    pending: Vec<Frame>,
+    /// Inputs held by the reorder stage (unsorted).
+    held: Vec<Input>,
+    /// Everything before this was released, s.
+    released_until: f64,
+    /// Boot count of the array's latest `Hello`.
+    boot_count: Option<u32>,
+}
+
+/// The intake of the arrays of one site.
+#[derive(Clone, Debug)]
+pub struct Intake {
+    site: Site,
+    config: IntakeConfig,
+    arrays: HashMap<u16, ArrayState>,
+    /// Host time of the newest audio accepted from any array, s.
+    now: f64,
+    stats: IntakeStats,
+}
+
+impl Intake {
+    /// An intake for `site`.
+    pub fn new(site: Site, config: IntakeConfig) -> Self {
+        Self {
+            site,
+            config,
+            arrays: HashMap::new(),
+            now: f64::NEG_INFINITY,
+            stats: IntakeStats::default(),
         }
+    }
+
+    /// What it did so far.
+    pub fn stats(&self) -> &IntakeStats {
+        &self.stats
+    }
+
+    /// Its tunables.
+    pub fn config(&self) -> &IntakeConfig {
+        &self.config
+    }
+
+    /// Host time of the newest audio accepted, s (−∞ before any): the moment everything
+    /// released so far became available.
+    pub fn now(&self) -> f64 {
+        self.now
+    }
+
+    /// Takes one frame, in link order; `sink` gets what it releases.
+    pub fn push(
+        &mut self,
+        frame: &Frame,
+        sink: &mut impl FnMut(Released),
+    ) -> Result<(), IntakeError> {
+        self.stats.frames += 1;
+        let id = u16::from(frame.header.array_id);
+        let Some(pose) = self.site.array(id) else {
+            self.stats.unknown_array += 1;
+            return Ok(());
+        };
+        let state = self.arrays.entry(id).or_insert_with(|| ArrayState {
+            rate_hz: self.site.sample_rate_hz,
+            released_until: f64::NEG_INFINITY,
+            ..ArrayState::default()
+        });
+        let span = match &frame.body {
+            Body::Hello(h) => {
+                check_hello(id, h, state, &self.site, pose.mic_positions_m.as_slice())?;
+                self.stats.hellos += 1;
+                let rebooted = state.boot_count.is_some_and(|b| b != h.boot_count);
+                state.boot_count = Some(h.boot_count);
+                if let (true, Some(old)) = (rebooted, state.timeline) {
+                    let fs = f64::from(state.rate_hz.unwrap_or(DEFAULT_SAMPLE_RATE_HZ));
+                    // The old boot's inputs all describe audio up to its last: release them.
+                    self.stats.inputs += release(state, id, old.newest_s(pose, fs), sink);
+                    self.stats.out_of_window += state.pending.len() as u64;
+                    state.pending.clear();
+                    self.stats.new_epochs += 1;
+                    self.stats.reboots_announced += 1;
+                    let first = frame.header.sample_index;
+                    state.timeline = Some(old.next_epoch(pose, fs, first, self.config.epoch_gap_s));
+                }
+                0
+            }
+            Body::Doa(d) => d.span_samples,
+            Body::Peaks(p) => p.span_samples,
+            // Health carries no observation and is stamped at the start of its second-long
+            // interval: it takes no part in the time base.
+            _ => return Ok(()),
+        };
+        let fs = f64::from(state.rate_hz.unwrap_or(DEFAULT_SAMPLE_RATE_HZ));
+        if f64::from(span) / fs > self.config.max_span_s {
+            self.stats.bad_span += 1;
+            return Ok(());
+        }
+        let start = frame.header.sample_index;
+        let end = start.saturating_add(u64::from(span));
+        let c = &self.config;
+        let in_window = |newest_end: u64| {
+            let behind = (c.window_behind_s * fs) as u64;
+            let ahead = (c.window_ahead_s * fs) as u64;
+            end.saturating_add(behind) >= newest_end && start <= newest_end.saturating_add(ahead)
+        };
+        let mut accepted = Vec::new();
+        if state.timeline.is_some_and(|tl| in_window(tl.newest_end)) {
+            self.stats.out_of_window += state.pending.len() as u64;
+            state.pending.clear();
+            accepted.push(frame.clone());
+        } else {
+            let chain_end = state.pending.iter().map(frame_end).max();
+            if !chain_end.is_some_and(in_window) {
+                self.stats.out_of_window += state.pending.len() as u64;
+                state.pending.clear();
+            }
+            state.pending.push(frame.clone());
+            if state.pending.len() >= c.confirm_frames.max(1) {
+                let chain = std::mem::take(&mut state.pending);
+                let first = chain.iter().map(|f| f.header.sample_index).min().unwrap_or(start);
+                state.timeline = Some(match state.timeline {
+                    None => Timeline { shift_s: 0.0, newest_end: first },
+                    Some(old) if first > old.newest_end => {
+                        self.stats.gaps += 1;
+                        Timeline { shift_s: old.shift_s, newest_end: first }
+                    }
+                    Some(old) => {
+                        self.stats.new_epochs += 1;
+                        old.next_epoch(pose, fs, first, c.epoch_gap_s)
+                    }
+                });
+                accepted = chain;
+            }
+        }
+        let Some(timeline) = state.timeline.as_mut() else {
+            return Ok(());
+        };
+        for f in &accepted {
+            timeline.newest_end = timeline.newest_end.max(frame_end(f));
+            let time = |index: f64| pose.sample_time(index, fs) + timeline.shift_s;
+            let s = f.header.sample_index as f64;
+            let span = f64::from(frame_span(f));
+            if span > 0.0 {
+                sink(Released::Audio { array_id: id, from_s: time(s), to_s: time(s + span) });
+            }
+            // An output describes the samples [index, index + span): it is stamped at their
+            // middle.
+            if let Some(input) = input_of(id, &f.body, time(s + 0.5 * span)) {
+                if input.t() < state.released_until {
+                    self.stats.late += 1;
+                } else {
+                    state.held.push(input);
+                }
+            }
+        }
+        let newest = timeline.newest_s(pose, fs);
+        self.now = self.now.max(newest);
+        let until = newest - c.reorder_s;
+        self.stats.inputs += release(state, id, until, sink);
+        Ok(())
+    }
+
+    /// Releases everything still held (the end of the stream). Frames outside the window that
+    /// were never confirmed are counted and dropped.
+    pub fn finish(&mut self, sink: &mut impl FnMut(Released)) {
+        let mut ids: Vec<u16> = self.arrays.keys().copied().collect();
+        ids.sort_unstable();
+        for id in ids {
+            let state = self.arrays.get_mut(&id).expect("listed");
+            self.stats.out_of_window += state.pending.len() as u64;
+            state.pending.clear();
+            self.stats.inputs += release(state, id, f64::INFINITY, sink);
+        }
+    }
+}
+
+/// Releases the held inputs stamped at or before `until` in stamp order, then says so;
+/// returns how many.
+fn release(
+    state: &mut ArrayState,
+    array_id: u16,
+    until: f64,
+    sink: &mut impl FnMut(Released),
+) -> u64 {
+    if until <= state.released_until {
+        return 0;
+    }
+    let (mut out, keep): (Vec<Input>, Vec<Input>) =
+        std::mem::take(&mut state.held).into_iter().partition(|i| i.t() <= until);
+    state.held = keep;
+    out.sort_by(|a, b| a.t().total_cmp(&b.t()));
+    let n = out.len() as u64;
+    for input in out {
+        sink(Released::Input(input));
+    }
+    state.released_until = until;
+    if until.is_finite() {
+        sink(Released::Until { array_id, t: until });
+    }
+    n
+}
+
+/// Checks a `Hello` against the site file and the array's earlier `Hello`s; sets the rate.
+fn check_hello(
+    id: u16,
+    hello: &Hello,
+    state: &mut ArrayState,
+    site: &Site,
+    site_mics: &[[f64; 2]],
+) -> Result<(), IntakeError> {
+    let rate = hello.sample_rate_hz;
+    match (site.sample_rate_hz, state.rate_hz) {
+        (Some(expected), _) if expected != rate => {
+            return Err(IntakeError::SampleRate {
+                array: id,
+                hello_hz: rate,
+                expected: format!("the site file says {expected} Hz"),
+            });
+        }
+        (None, Some(earlier)) if earlier != rate => {
+            return Err(IntakeError::SampleRate {
+                array: id,
+                hello_hz: rate,
+                expected: format!("an earlier Hello announced {earlier} Hz"),
+            });
+        }
+        (None, _) if !PLAUSIBLE_RATES_HZ.contains(&rate) => {
+            return Err(IntakeError::SampleRate {
+                array: id,
+                hello_hz: rate,
+                expected: format!(
+                    "outside {}–{} Hz and the site file gives none",
+                    PLAUSIBLE_RATES_HZ.start(),
+                    PLAUSIBLE_RATES_HZ.end()
+                ),
+            });
+        }
+        _ => state.rate_hz = Some(rate),
+    }
+    if !site_mics.is_empty() {
+        let hello_mics: Vec<[f64; 2]> = (0..hello.mic_positions_decimm.len())
+            .filter_map(|i| hello.mic_position_m(i))
+            // At the wire's 0.1 mm, as the Hello gave them.
+            .map(|p| [0, 1].map(|i| (f64::from(p[i]) * 1e4).round() / 1e4))
+            .collect();
+        // The wire quantises to 0.1 mm; 1 mm is a different array.
+        let same = hello_mics.len() == site_mics.len()
+            && hello_mics
+                .iter()
+                .zip(site_mics)
+                .all(|(h, s)| (h[0] - s[0]).abs() <= 1e-3 && (h[1] - s[1]).abs() <= 1e-3);
+        if !same {
+            return Err(IntakeError::Geometry {
+                array: id,
+                hello: hello_mics,
+                site: site_mics.to_vec(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Samples a frame describes (0 for a `Hello`).
+fn frame_span(frame: &Frame) -> u32 {
+    match &frame.body {
+        Body::Doa(d) => d.span_samples,
+        Body::Peaks(p) => p.span_samples,
+        _ => 0,
+    }
+}
+
+/// Index of the sample after the last one a frame describes.
+fn frame_end(frame: &Frame) -> u64 {
+    frame.header.sample_index.saturating_add(u64::from(frame_span(frame)))
+}
+
+/// The tracker input a frame carries, stamped `t`: wire units become radians and linear
+/// amplitudes.
+fn input_of(array_id: u16, body: &Body, t: f64) -> Option<Input> {
+    match body {
+        Body::Doa(d) => Some(Input::Bearing(Bearing {
+            t,
+            array_id,
+            azimuth_rad: f64::from(d.azimuth_rad()),
+            zenith_rad: f64::from(d.zenith_rad()),
+            residual: f64::from(d.residual_samples()),
+            quality: f64::from(d.quality()),
+        })),
+        Body::Peaks(p) => Some(Input::Spectrum(Spectrum {
+            t,
+            array_id,
+            peaks: p
+                .peaks
+                .iter()
+                // "No rotor signature": no groups (the chip's detection decision stands).
+                .filter(|q| p.is_rotor() && q.freq_hz() > 0.0)
+                .map(|q| BpfPeak {
+                    hz: f64::from(q.freq_hz()),
+                    amplitude: 10f64.powf(f64::from(q.amplitude_db()) / 20.0),
+                })
+                .collect(),
+        })),
+        _ => None,
     }
 }
 
@@ -78,46 +491,104 @@ impl FrameConverter {
 mod tests {
     use super::*;
     use crate::site::ArrayPose;
-    use aim_wire::{Doa, Header, Hello, Peak, Peaks};
+    use aim_wire::{Doa, Header, Peak, Peaks};
+
+    fn collect(intake: &mut Intake, frame: &Frame, out: &mut Vec<Released>) {
+        intake.push(frame, &mut |r| out.push(r)).unwrap();
+    }
 
     #[test]
-    fn units_and_times() {
+    fn units_times_and_order() {
         let mut pose = ArrayPose::new(3, [0.0; 3], 0.0, 0.0, 0.0);
         pose.clock_offset_s = 1.0;
         let site = Site { arrays: vec![pose], room: None, sample_rate_hz: None };
-        let mut c = FrameConverter::new(site);
-        let header = Header { array_id: 3, seq: 0, sample_index: 16_000 };
-        let hello =
-            Frame { header, body: Body::Hello(Hello::new([0, 1, 0], 16_000, 1024, &[[0.0, 0.0]])) };
-        assert!(c.convert(&hello).is_none());
-        let doa = Doa { span_samples: 1600, ..Doa::new(0.5, 1.0, 0.25, 0.8) };
-        let Some(Input::Bearing(b)) = c.convert(&Frame { header, body: Body::Doa(doa) }) else {
-            panic!()
+        let mut intake = Intake::new(site, IntakeConfig::default());
+        let mut out = Vec::new();
+        let header = |sample_index| Header { array_id: 3, seq: 0, sample_index };
+        let hello = Hello::new([0, 1, 0], 16_000, 1024, &[[0.0, 0.0]]);
+        collect(&mut intake, &Frame { header: header(0), body: Body::Hello(hello) }, &mut out);
+        let doa = |i| Frame {
+            header: header(i),
+            body: Body::Doa(Doa { span_samples: 1600, ..Doa::new(0.5, 1.0, 0.25, 0.8) }),
         };
-        // 16 000 samples at 16 kHz after an offset of 1 s, stamped 800 samples later.
-        assert!((b.t - 2.05).abs() < 1e-12, "{}", b.t);
-        assert!((b.azimuth_rad - 0.5).abs() < 2e-4 && (b.zenith_rad - 1.0).abs() < 2e-4);
-        assert!((b.residual - 0.25).abs() < 1e-6 && (b.quality - 0.8).abs() < 0.004);
+        collect(&mut intake, &doa(16_000), &mut out);
+        assert!(out.is_empty(), "the first time base waits for three frames that agree");
         let mut peaks = heapless::Vec::new();
         peaks.push(Peak::new(328.25, -20.0, 1.0)).unwrap();
+        // A Peaks frame of 0.5 s ending with the next Doa: stamped before it.
         let p = Peaks {
-            span_samples: 0,
+            span_samples: 8000,
             bpf_chz: 32825,
             peaks,
             detection: aim_wire::Detection::Rotor,
             quality: [200].into_iter().collect(),
         };
-        let Some(Input::Spectrum(s)) = c.convert(&Frame { header, body: Body::Peaks(p.clone()) })
-        else {
-            panic!()
-        };
+        collect(&mut intake, &doa(17_600), &mut out);
+        collect(&mut intake, &Frame { header: header(11_200), body: Body::Peaks(p) }, &mut out);
+        intake.finish(&mut |r| out.push(r));
+        let inputs: Vec<&Input> = out
+            .iter()
+            .filter_map(|r| match r {
+                Released::Input(i) => Some(i),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(inputs.len(), 3);
+        // The Peaks frame (stamped 1 + (11 200 + 4 000) / 16 000 = 1.95 s) comes first,
+        // then the Doa frames at 1 + 16 800 / 16 000 = 2.05 s and 2.15 s.
+        let Input::Spectrum(s) = inputs[0] else { panic!("{inputs:?}") };
+        assert!((s.t - 1.95).abs() < 1e-12, "{}", s.t);
         assert!((s.peaks[0].hz - 328.25).abs() < 1e-4 && (s.peaks[0].amplitude - 0.1).abs() < 1e-6);
-        let none = Peaks { detection: aim_wire::Detection::NoRotor, ..p.clone() };
-        let Some(Input::Spectrum(s)) = c.convert(&Frame { header, body: Body::Peaks(none) }) else {
-            panic!()
+        let Input::Bearing(b) = inputs[1] else { panic!("{inputs:?}") };
+        assert!((b.t - 2.05).abs() < 1e-12, "{}", b.t);
+        assert!((b.azimuth_rad - 0.5).abs() < 2e-4 && (b.zenith_rad - 1.0).abs() < 2e-4);
+        assert!((b.residual - 0.25).abs() < 1e-6 && (b.quality - 0.8).abs() < 0.004);
+        assert!((inputs[2].t() - 2.15).abs() < 1e-12);
+        // Audio spans come with the frames.
+        assert!(out.iter().any(|r| matches!(r, Released::Audio { array_id: 3, from_s, to_s }
+            if (from_s - 2.0).abs() < 1e-12 && (to_s - 2.1).abs() < 1e-12)));
+        let stranger = Frame { header: Header { array_id: 9, ..header(0) }, ..doa(0) };
+        collect(&mut intake, &stranger, &mut out);
+        assert_eq!(intake.stats().unknown_array, 1);
+        assert_eq!(intake.stats().hellos, 1);
+    }
+
+    #[test]
+    fn a_frame_without_rotor_signature_carries_no_groups() {
+        let mut peaks = heapless::Vec::new();
+        peaks.push(Peak::new(328.25, -20.0, 1.0)).unwrap();
+        let p = Peaks {
+            span_samples: 8000,
+            bpf_chz: 32825,
+            peaks,
+            detection: aim_wire::Detection::Rotor,
+            quality: [200].into_iter().collect(),
         };
+        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(p.clone()), 0.0) else { panic!() };
+        assert_eq!(s.peaks.len(), 1);
+        let none = Peaks { detection: aim_wire::Detection::NoRotor, ..p.clone() };
+        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(none), 0.0) else { panic!() };
         assert!(s.peaks.is_empty(), "no rotor signature carries no groups");
-        let stranger = Frame { header: Header { array_id: 9, ..header }, body: Body::Doa(doa) };
-        assert!(c.convert(&stranger).is_none() && c.unknown_array_frames == 1);
+        // An older frame (no decision) with a BPF still counts as a rotor.
+        let older =
+            Peaks { detection: aim_wire::Detection::Unstated, quality: heapless::Vec::new(), ..p };
+        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(older), 0.0) else { panic!() };
+        assert_eq!(s.peaks.len(), 1);
+    }
+
+    #[test]
+    fn a_span_longer_than_allowed_is_set_aside() {
+        let site = Site {
+            arrays: vec![ArrayPose::new(1, [0.0; 3], 0.0, 0.0, 0.0)],
+            room: None,
+            sample_rate_hz: Some(48_000),
+        };
+        let mut intake = Intake::new(site, IntakeConfig::default());
+        let frame = Frame {
+            header: Header { array_id: 1, seq: 0, sample_index: 0 },
+            body: Body::Doa(Doa { span_samples: 96_000, ..Doa::new(0.5, 1.0, 0.25, 0.8) }),
+        };
+        intake.push(&frame, &mut |_| panic!("released")).unwrap();
+        assert_eq!(intake.stats().bad_span, 1);
     }
 }

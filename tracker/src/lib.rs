@@ -4,14 +4,19 @@
 //! - [`observation`]: the plain inputs (bearings, BPF peaks);
 //! - [`iqr`], [`doa`]: IQR smoothing, DoA trend and the LoS decision per array;
 //! - [`motion`]: motion classes (paper Table I);
+//! - [`doppler`]: the Doppler of the BPF lines, the range cue of one array;
 //! - [`dynamics`]: thrust, hover self-calibration, accelerations and speeds;
 //! - [`filter`]: the paper's position-only Kalman filter and the `aim` EKF mixture;
 //! - [`tracker`]: the pipeline that runs them at a fixed output period;
+//! - [`link`], [`intake`], [`session`]: link bytes → frames → inputs in time order on one time
+//!   base → the tracker, the one path of `aim track`, `aim replay` and `host-sim fly`;
+//! - [`status`]: per-array link and board counters, the status line of `aim track`;
 //! - [`profile`], [`site`]: drone profiles and site files (TOML).
 #![warn(missing_docs)]
 
 pub mod config;
 pub mod doa;
+pub mod doppler;
 pub mod dynamics;
 pub mod exit;
 pub mod filter;
@@ -22,7 +27,9 @@ pub mod link;
 pub mod motion;
 pub mod observation;
 pub mod profile;
+pub mod session;
 pub mod site;
+pub mod status;
 #[cfg(test)]
 mod testutil;
 pub mod tracker;

@@ -107,6 +107,10 @@ pub fn bpf_groups(
     groups
 }
 
+/// The on-chip pipeline's BPF frame period (12 288 samples at 48 kHz), s: bounds how old the
+/// newest `n` frames may be.
+const BPF_FRAME_PERIOD_S: f64 = 0.256;
+
 /// Tunables of the [`MotionClassifier`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct MotionConfig {
@@ -151,6 +155,21 @@ pub struct MotionConfig {
     /// BPF frames older than this (frame centre to decision time) are stale, s; two BPF
     /// groups in a fresh frame count as a split.
     pub stale_s: f64,
+    /// A thrust *drop* (negative excess) starts a motion only beyond this many spreads: only
+    /// a descent lowers the thrust, every horizontal start raises it (the tilt).
+    pub start_sigmas_down: f64,
+    /// While moving, this many newest BPF frames (0: off) that agree with each other within
+    /// `steady_sigmas` spreads, with one group and no DoA trend in either span, are a hover
+    /// at a new rest level: the motion ends and the rest level moves to their mean. (The level
+    /// a frame is judged against shifts when the tracker's hover pattern is relearnt; without
+    /// this the classifier stayed "moving" through whole hovers.)
+    pub steady_frames: usize,
+    /// Largest spread (max − min) of the steady frames, in single-frame spreads.
+    pub steady_sigmas: f64,
+    /// Still with a split is a yaw only when at least two fresh frames show it, and all of
+    /// them up to this many (a real airframe's static imbalance shows as a split in single
+    /// frames now and then).
+    pub yaw_min_frames: usize,
 }
 
 impl Default for MotionConfig {
@@ -172,6 +191,10 @@ impl Default for MotionConfig {
             doa_noise_memory: 50.0,
             doa_min_pooled_inliers: 5,
             stale_s: 0.6,
+            start_sigmas_down: 3.5,
+            steady_frames: 4,
+            steady_sigmas: 8.0,
+            yaw_min_frames: 3,
         }
     }
 }
@@ -232,6 +255,8 @@ pub struct MotionClassifier {
     sigma_weight: f64,
     /// Time of the newest frame already judged as a start cue.
     judged_t: f64,
+    /// Decision time the current motion started, s.
+    moving_since: f64,
     /// Consecutive still decisions with a trend in both DoA spans.
     doa_start_run: usize,
     /// Pooled variance of one bearing component, rad², and its weight in decisions.
@@ -254,6 +279,7 @@ impl MotionClassifier {
             sigma_sq,
             sigma_weight,
             judged_t: f64::NEG_INFINITY,
+            moving_since: f64::NEG_INFINITY,
             doa_start_run: 0,
             doa_noise_sq: 0.0,
             doa_noise_weight: 0.0,
@@ -323,8 +349,9 @@ impl MotionClassifier {
             }
         }
         self.frames.push_back(frame);
-        let keep = self.config.stop_quiet_frames.max(self.config.stop_quiet_frames_blind);
-        while self.frames.len() > keep.max(1) + 2 {
+        let c = &self.config;
+        let keep = c.stop_quiet_frames.max(c.stop_quiet_frames_blind).max(1) + 2;
+        while self.frames.len() > keep.max(c.steady_frames) {
             self.frames.pop_front();
         }
     }
@@ -381,9 +408,12 @@ impl MotionClassifier {
                     let pair = previous
                         .filter(|p| !p.split && !f.split)
                         .map_or(0.0, |p| e + self.excess_over_rest(&p));
+                    let beyond = |x: f64, k: f64| {
+                        x > c.start_sigmas * sigma * k || -x > c.start_sigmas_down * sigma * k
+                    };
                     calibrated
-                        && (e.abs() > c.start_sigmas * sigma
-                            || pair.abs() > c.start_sigmas * sigma * std::f64::consts::SQRT_2
+                        && (beyond(e, 1.0)
+                            || beyond(pair, std::f64::consts::SQRT_2)
                             || (f.split && e > c.quiet_sigmas * sigma))
                 });
                 // A trend in both DoA spans, in `doa_start_decisions` decisions running (a
@@ -392,6 +422,7 @@ impl MotionClassifier {
                     if doa_moving && long_moving { self.doa_start_run + 1 } else { 0 };
                 if thrust_start || self.doa_start_run >= c.doa_start_decisions {
                     self.phase = Phase::Moving;
+                    self.moving_since = t;
                     self.doa_start_run = 0;
                 }
             }
@@ -406,14 +437,43 @@ impl MotionClassifier {
                 } else {
                     !doa_moving
                 };
-                if stop {
+                // Steady frames without a DoA trend: a hover at a shifted rest level.
+                let n = c.steady_frames;
+                let recent = self.frames.len().checked_sub(n).map(|skip| self.frames.range(skip..));
+                let steady = n > 0
+                    && !doa_moving
+                    && !long_moving
+                    && recent.clone().is_some_and(|mut r| {
+                        let oldest_t = r.next().map_or(f64::NEG_INFINITY, |f| f.t);
+                        let (lo, hi, any_split) = self
+                            .frames
+                            .range(self.frames.len() - n..)
+                            .fold((f64::INFINITY, f64::NEG_INFINITY, false), |(lo, hi, sp), f| {
+                                (lo.min(f.excess), hi.max(f.excess), sp || f.split)
+                            });
+                        // Frames of this motion only, and recent (no gap in the BPF stream).
+                        oldest_t >= self.moving_since
+                            && t - oldest_t <= c.stale_s + BPF_FRAME_PERIOD_S * n as f64
+                            && !any_split
+                            && hi - lo <= c.steady_sigmas * sigma
+                    });
+                if steady && !stop {
+                    let mean = recent
+                        .map_or(self.rest_level, |r| r.map(|f| f.excess).sum::<f64>() / n as f64);
+                    self.rest_level = mean;
+                    self.level_weight = n as f64;
+                }
+                if stop || steady {
                     self.phase = Phase::Still;
                 }
             }
         }
-        let split = fresh.iter().any(|f| f.split);
+        let splits = fresh.iter().filter(|f| f.split).count();
+        let split = splits > 0;
         match self.phase {
-            Phase::Still if split => MotionClass::Yaw,
+            Phase::Still if splits >= 2 && splits >= fresh.len().min(c.yaw_min_frames) => {
+                MotionClass::Yaw
+            }
             Phase::Still => MotionClass::Hover,
             // A DoA moving in zenith alone, with one rotor speed, is a climb or descent.
             Phase::Moving if doa_moving && zenith_only && !split => MotionClass::Vertical,
@@ -629,5 +689,68 @@ mod tests {
         c.add_thrust(ThrustFrame { t: t - 1.0, excess: 0.0, split: false });
         c.add_thrust(ThrustFrame { t: t + 0.1, excess: f64::NAN, split: false });
         assert_eq!(c.latest_frame_t(), Some(t));
+    }
+
+    /// A classifier calibrated on 40 quiet frames at rest level 0 with 1 ‰ spread.
+    fn calibrated(config: MotionConfig) -> (MotionClassifier, f64) {
+        let mut rng = Rng::new(21);
+        let mut c = MotionClassifier::new(config);
+        let mut t = 0.0;
+        for _ in 0..40 {
+            t += 0.256;
+            c.add_thrust(ThrustFrame { t, excess: 1e-3 * rng.normal(), split: false });
+            assert_eq!(c.update(t + 0.05, None), MotionClass::Hover);
+        }
+        (c, t)
+    }
+
+    #[test]
+    fn a_shifted_rest_level_does_not_hold_the_motion_for_ever() {
+        // The level frames are judged against drops by 2.8 % at once (the tracker relearnt its
+        // hover pattern) while the drone keeps hovering: the drop starts a "motion" (it could
+        // be a descent), but four steady frames without a DoA trend end it at the new level.
+        let classes = |config: MotionConfig| {
+            let (mut c, mut t) = calibrated(config);
+            let mut rng = Rng::new(4);
+            let mut out = Vec::new();
+            for _ in 0..16 {
+                t += 0.256;
+                c.add_thrust(ThrustFrame { t, excess: -0.028 + 1e-3 * rng.normal(), split: false });
+                out.push(c.update(t + 0.05, None));
+            }
+            out
+        };
+        let with = classes(MotionConfig::default());
+        assert_eq!(with[0], MotionClass::Horizontal, "{with:?}");
+        assert!(with[5..].iter().all(|c| *c == MotionClass::Hover), "{with:?}");
+        // Without the rule the classifier never comes back.
+        let without = classes(MotionConfig { steady_frames: 0, ..MotionConfig::default() });
+        assert!(without.iter().all(|c| *c == MotionClass::Horizontal), "{without:?}");
+    }
+
+    #[test]
+    fn a_lone_split_frame_is_no_yaw_but_a_run_of_them_is() {
+        let (mut c, mut t) = calibrated(MotionConfig::default());
+        // One frame hears the static imbalance as two groups, at hover thrust.
+        t += 0.256;
+        c.add_thrust(ThrustFrame { t, excess: 0.0, split: true });
+        assert_eq!(c.update(t + 0.05, None), MotionClass::Hover);
+        for _ in 0..3 {
+            t += 0.256;
+            c.add_thrust(ThrustFrame { t, excess: 0.0, split: false });
+        }
+        // A yaw: every frame split, at hover thrust; the third in a row (all fresh frames) is
+        // a yaw.
+        let mut out = Vec::new();
+        for _ in 0..4 {
+            t += 0.256;
+            c.add_thrust(ThrustFrame { t, excess: 0.0, split: true });
+            out.push(c.update(t + 0.05, None));
+        }
+        assert_eq!(
+            out,
+            [MotionClass::Hover, MotionClass::Hover, MotionClass::Yaw, MotionClass::Yaw],
+            "{out:?}"
+        );
     }
 }

@@ -6,8 +6,8 @@
 //! blades = 2                    # blades per propeller, n
 //! mass_kg = 0.249
 //! k_v = 2.27e-5                 # thrust coefficient, N/Hz² of rotation frequency (self-calibrated on hover)
-//! k_h = 2.72e-7                 # drag-torque coefficient, N·m/Hz²
-//! i_z = 7.5e-4                  # yaw moment of inertia, kg·m²
+//! k_h = 2.72e-7                 # optional: drag-torque coefficient, N·m/Hz² (0 = unknown)
+//! i_z = 7.5e-4                  # optional: yaw moment of inertia, kg·m² (0 = unknown)
 //! lambda_h = 0.01               # horizontal quadratic drag, N·s²/m²
 //! lambda_v = 0.02               # vertical quadratic drag, N·s²/m²
 //! bpf_min_hz = 200.0            # BPF search range
@@ -62,9 +62,10 @@ pub struct Profile {
     pub mass_kg: f64,
     /// Thrust coefficient k_v, N/Hz² (of rotation frequency): T_i = k_v f_i².
     pub k_v: f64,
-    /// Drag-torque coefficient k_h, N·m/Hz².
+    /// Drag-torque coefficient k_h, N·m/Hz²; 0 when unknown (only the yaw-size estimator
+    /// needs it).
     pub k_h: f64,
-    /// Yaw moment of inertia I_z, kg·m².
+    /// Yaw moment of inertia I_z, kg·m²; 0 when unknown (only the yaw-size estimator needs it).
     pub i_z: f64,
     /// Horizontal quadratic drag λ_h, N·s²/m².
     pub lambda_h: f64,
@@ -88,8 +89,8 @@ struct ProfileFile {
     blades: toml::Spanned<u32>,
     mass_kg: toml::Spanned<f64>,
     k_v: toml::Spanned<f64>,
-    k_h: toml::Spanned<f64>,
-    i_z: toml::Spanned<f64>,
+    k_h: Option<toml::Spanned<f64>>,
+    i_z: Option<toml::Spanned<f64>>,
     lambda_h: toml::Spanned<f64>,
     lambda_v: toml::Spanned<f64>,
     bpf_min_hz: toml::Spanned<f64>,
@@ -106,11 +107,24 @@ impl Profile {
     /// Parses and checks profile TOML `text` (`path` names it in errors).
     pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
         let f: ProfileFile = parse_toml(text, path)?;
-        let positive = |v: &toml::Spanned<f64>, what: &str| {
-            check(v, |x| x > 0.0, &format!("{what} must be positive"), text, path)
+        // Upper limits far beyond any multirotor, so that no value can overflow the dynamics.
+        let positive = |v: &toml::Spanned<f64>, what: &str, max: f64| {
+            check(
+                v,
+                |x| x > 0.0 && x <= max,
+                &format!("{what} must be positive and at most {max}"),
+                text,
+                path,
+            )
         };
-        let non_negative = |v: &toml::Spanned<f64>, what: &str| {
-            check(v, |x| x >= 0.0, &format!("{what} must not be negative"), text, path)
+        let non_negative = |v: &toml::Spanned<f64>, what: &str, max: f64| {
+            check(
+                v,
+                |x| (0.0..=max).contains(&x),
+                &format!("{what} must be 0 to {max}"),
+                text,
+                path,
+            )
         };
         let blades = *f.blades.get_ref();
         if !(1..=8).contains(&blades) {
@@ -120,31 +134,55 @@ impl Profile {
                 message: format!("blades must be 1 to 8 (got {blades})"),
             });
         }
-        let bpf_min_hz = positive(&f.bpf_min_hz, "bpf_min_hz")?;
-        let bpf_max_hz = check(
-            &f.bpf_max_hz,
-            |x| x > bpf_min_hz,
-            "bpf_max_hz must exceed bpf_min_hz",
+        let bpf_min_hz = check(
+            &f.bpf_min_hz,
+            |x| (10.0..=10_000.0).contains(&x),
+            "bpf_min_hz must be 10 to 10000 Hz",
             text,
             path,
         )?;
-        Ok(Self {
+        let bpf_max_hz = check(
+            &f.bpf_max_hz,
+            |x| x > bpf_min_hz && x <= 10_000.0,
+            "bpf_max_hz must exceed bpf_min_hz and be at most 10000 Hz",
+            text,
+            path,
+        )?;
+        let profile = Self {
             name: f.name,
             structure: f.structure,
             blades,
-            mass_kg: positive(&f.mass_kg, "mass_kg")?,
-            k_v: positive(&f.k_v, "k_v")?,
-            k_h: positive(&f.k_h, "k_h")?,
-            i_z: positive(&f.i_z, "i_z")?,
-            lambda_h: non_negative(&f.lambda_h, "lambda_h")?,
-            lambda_v: non_negative(&f.lambda_v, "lambda_v")?,
+            mass_kg: positive(&f.mass_kg, "mass_kg", 1000.0)?,
+            k_v: positive(&f.k_v, "k_v", 1.0)?,
+            k_h: match &f.k_h {
+                Some(v) => positive(v, "k_h", 1.0)?,
+                None => 0.0,
+            },
+            i_z: match &f.i_z {
+                Some(v) => positive(v, "i_z", 1000.0)?,
+                None => 0.0,
+            },
+            lambda_h: non_negative(&f.lambda_h, "lambda_h", 100.0)?,
+            lambda_v: non_negative(&f.lambda_v, "lambda_v", 100.0)?,
             bpf_min_hz,
             bpf_max_hz,
             wake_loss_per_mps: match &f.wake_loss_per_mps {
-                Some(v) => non_negative(v, "wake_loss_per_mps")?,
+                Some(v) => non_negative(v, "wake_loss_per_mps", 1.0)?,
                 None => 0.0,
             },
-        })
+        };
+        // Mass and k_v fix the hover BPF; one outside the search range is a wrong profile.
+        let hover = profile.hover_bpf_hz();
+        if !(hover >= profile.bpf_min_hz && hover <= profile.bpf_max_hz) {
+            return Err(ConfigError {
+                path: path.to_path_buf(),
+                line: Some(line_of(text, f.k_v.span().start)),
+                message: format!(
+                    "the hover BPF of mass_kg and k_v, {hover:.1} Hz, is outside bpf_min_hz..bpf_max_hz"
+                ),
+            });
+        }
+        Ok(profile)
     }
 
     /// Number of rotors N.
@@ -224,6 +262,23 @@ mod tests {
             e.to_string().starts_with(&format!("p.toml:{line}: mass_kg must be positive")),
             "{e}"
         );
+
+        for (from, to, message) in [
+            ("mass_kg = 0.249", "mass_kg = 1e300", "mass_kg must be positive and at most"),
+            ("", "i_z = nan", "i_z must be positive"),
+            ("k_v = 2.27e-5", "k_v = 1e-320", "hover BPF"),
+            ("bpf_min_hz = 200.0", "bpf_min_hz = 1e-300", "bpf_min_hz must be 10 to"),
+            ("", "wake_loss_per_mps = 1e9", "wake_loss_per_mps must be"),
+        ] {
+            // An empty `from` appends the line (the bundled profile has no wake constant, k_h
+            // or i_z).
+            let bad =
+                if from.is_empty() { format!("{good}{to}\n") } else { good.replace(from, to) };
+            let line = bad.lines().position(|l| l.starts_with(to)).unwrap() + 1;
+            let e = Profile::parse(&bad, Path::new("p.toml")).unwrap_err();
+            assert_eq!(e.line, Some(line), "{to}: {e}");
+            assert!(e.message.contains(message), "{to}: {e}");
+        }
 
         let bad = good.replace("structure = \"quad\"", "structure = \"tri\"");
         let line = bad.lines().position(|l| l.starts_with("structure")).unwrap() + 1;

@@ -11,8 +11,9 @@
 //! yaw_deg = 0.0                # array +x from world east, counter-clockwise
 //! pitch_deg = 0.0              # optional: rotation about the array's y, degrees
 //! roll_deg = 0.0               # optional: rotation about the array's x, degrees
-//! geometry = "respeaker-6mic"  # optional, informative
-//! positions = [[0.0463, 0.0]]  # optional: microphone positions, array frame, m (informative)
+//! geometry = "respeaker-6mic"  # optional: one of KNOWN_GEOMETRIES ("custom" needs positions)
+//! positions = [[0.0463, 0.0], ...]  # optional: 4 to 8 microphone positions, array frame, m
+//!                              # (checked against the array's Hello)
 //! clock_offset_s = 0.0         # optional: true time of the array's sample 0, s
 //! clock_drift_ppm = 0.0        # optional: the array clock's rate error, ppm
 //!
@@ -23,7 +24,10 @@
 //!
 //! [[obstacle]]                 # optional, informative: name, min, max, loss_db
 //! ```
-//! This is a superset of the `site.toml` that `host-sim simulate` writes.
+//! This is a superset of the `site.toml` that `host-sim simulate` writes. Every number is
+//! range-checked at its line: positions within [`MAX_COORDINATE_M`] and inside the room (with
+//! [`ROOM_TOLERANCE_M`]), angles within ±360°, offsets within [`MAX_CLOCK_OFFSET_S`], drifts
+//! within [`MAX_CLOCK_DRIFT_PPM`], ids 0–255 (the wire's), sample rate 1–384 kHz.
 //! The array frame is x right, y forward, z up along the array normal; the rotation from the
 //! array frame to the world is R = Rz(yaw)·Ry(pitch)·Rx(roll).
 
@@ -44,6 +48,9 @@ pub struct ArrayPose {
     pub rotation: [[f64; 3]; 3],
     /// Geometry name, if given.
     pub geometry: Option<String>,
+    /// Microphone positions `[x, y]` in the array frame, m, if given (empty otherwise): a
+    /// `Hello` announcing others is an error.
+    pub mic_positions_m: Vec<[f64; 2]>,
     /// True time of the array's sample 0, s.
     pub clock_offset_s: f64,
     /// Rate error of the array's clock, ppm (its second lasts 1 + drift·1e-6 true seconds).
@@ -61,7 +68,15 @@ impl ArrayPose {
             [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
             [-sp, cp * sr, cp * cr],
         ];
-        Self { id, position, rotation, geometry: None, clock_offset_s: 0.0, clock_drift_ppm: 0.0 }
+        Self {
+            id,
+            position,
+            rotation,
+            geometry: None,
+            mic_positions_m: Vec::new(),
+            clock_offset_s: 0.0,
+            clock_drift_ppm: 0.0,
+        }
     }
 
     /// True time, s, of sample `index` of this array's clock at nominal rate `sample_rate_hz`.
@@ -127,23 +142,42 @@ struct SiteFile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ArrayEntry {
-    id: u16,
-    position: [f64; 3],
-    #[serde(default)]
-    yaw_deg: f64,
-    #[serde(default)]
-    pitch_deg: f64,
-    #[serde(default)]
-    roll_deg: f64,
-    geometry: Option<String>,
-    #[serde(default)]
-    #[allow(dead_code)]
-    positions: Vec<[f64; 2]>,
-    #[serde(default)]
-    clock_offset_s: f64,
-    #[serde(default)]
-    clock_drift_ppm: f64,
+    id: toml::Spanned<u16>,
+    position: toml::Spanned<[f64; 3]>,
+    yaw_deg: Option<toml::Spanned<f64>>,
+    pitch_deg: Option<toml::Spanned<f64>>,
+    roll_deg: Option<toml::Spanned<f64>>,
+    geometry: Option<toml::Spanned<String>>,
+    positions: Option<toml::Spanned<Vec<[f64; 2]>>>,
+    clock_offset_s: Option<toml::Spanned<f64>>,
+    clock_drift_ppm: Option<toml::Spanned<f64>>,
 }
+
+/// Largest coordinate a site accepts, m: arrays and rooms lie within 10 km of the origin (far
+/// beyond any acoustic range; beyond about 1e15 m the filter's arithmetic breaks down).
+pub const MAX_COORDINATE_M: f64 = 10_000.0;
+/// Largest clock offset accepted, s (about 317 years: Unix times fit).
+pub const MAX_CLOCK_OFFSET_S: f64 = 1e10;
+/// Largest clock drift accepted, ppm (crystals are within ±100 ppm; a rate error of more than
+/// 0.1 % is a wrong sample rate, not a drift).
+pub const MAX_CLOCK_DRIFT_PPM: f64 = 1000.0;
+/// How far outside the room an array may sit (on or in a wall), m.
+pub const ROOM_TOLERANCE_M: f64 = 0.1;
+/// Microphone-array geometries the tracker and the DSP know by name (plus `custom` with
+/// `positions`).
+pub const KNOWN_GEOMETRIES: &[&str] = &[
+    "respeaker-6mic",
+    "respeaker-4mic",
+    "circle-8mic",
+    "respeaker6",
+    "respeaker4",
+    "circle8",
+    "custom",
+];
+/// Microphones per array the DSP takes (`aim_dsp::MIN_MICS`..=`aim_dsp::MAX_MICS`).
+const MICS: std::ops::RangeInclusive<usize> = 4..=8;
+/// Farthest a microphone may be from the array centre, m.
+const MAX_MIC_RADIUS_M: f64 = 1.0;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -151,6 +185,96 @@ struct RoomEntry {
     min: Option<[f64; 3]>,
     max: Option<[f64; 3]>,
     size: Option<[f64; 3]>,
+}
+
+/// Checks one `[[array]]` table (every number against its range, at its own line) and
+/// turns it into a pose; `earlier` are the arrays before it (for duplicate ids).
+fn array_pose(
+    a: &ArrayEntry,
+    earlier: &[ArrayPose],
+    err: &impl Fn(std::ops::Range<usize>, String) -> ConfigError,
+) -> Result<ArrayPose, ConfigError> {
+    let id = *a.id.get_ref();
+    if id > 255 {
+        return Err(err(a.id.span(), format!("array id {id}: frames carry ids 0 to 255")));
+    }
+    if earlier.iter().any(|p| p.id == id) {
+        return Err(err(a.id.span(), format!("array id {id} appears twice")));
+    }
+    let position = *a.position.get_ref();
+    if !position.iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M) {
+        return Err(err(
+            a.position.span(),
+            format!(
+                "array {id}: position must be finite and within {MAX_COORDINATE_M} m of the origin (got {position:?})"
+            ),
+        ));
+    }
+    let number = |v: &Option<toml::Spanned<f64>>, what: &str, limit: f64, unit: &str| {
+        let Some(v) = v else { return Ok(0.0) };
+        let x = *v.get_ref();
+        if x.is_finite() && x.abs() <= limit {
+            Ok(x)
+        } else {
+            Err(err(
+                v.span(),
+                format!("array {id}: {what} must be within ±{limit} {unit} (got {x:?})"),
+            ))
+        }
+    };
+    let yaw = number(&a.yaw_deg, "yaw_deg", 360.0, "degrees")?;
+    let pitch = number(&a.pitch_deg, "pitch_deg", 360.0, "degrees")?;
+    let roll = number(&a.roll_deg, "roll_deg", 360.0, "degrees")?;
+    let offset = number(&a.clock_offset_s, "clock_offset_s", MAX_CLOCK_OFFSET_S, "s")?;
+    let drift = number(&a.clock_drift_ppm, "clock_drift_ppm", MAX_CLOCK_DRIFT_PPM, "ppm")?;
+    if let Some(g) = &a.geometry {
+        if !KNOWN_GEOMETRIES.contains(&g.get_ref().as_str()) {
+            return Err(err(
+                g.span(),
+                format!(
+                    "array {id}: geometry `{}` is unknown (known: {})",
+                    g.get_ref(),
+                    KNOWN_GEOMETRIES.join(", ")
+                ),
+            ));
+        }
+        if g.get_ref() == "custom" && a.positions.is_none() {
+            return Err(err(g.span(), format!("array {id}: geometry `custom` needs `positions`")));
+        }
+    }
+    if let Some(p) = &a.positions {
+        let mics = p.get_ref();
+        if !MICS.contains(&mics.len()) {
+            return Err(err(
+                p.span(),
+                format!(
+                    "array {id}: positions lists {} microphones; an array has {} to {}",
+                    mics.len(),
+                    MICS.start(),
+                    MICS.end()
+                ),
+            ));
+        }
+        if let Some(k) = mics
+            .iter()
+            .position(|m| !m.iter().all(|v| v.is_finite() && v.abs() <= MAX_MIC_RADIUS_M))
+        {
+            return Err(err(
+                p.span(),
+                format!(
+                    "array {id}: microphone {k} at {:?} must be finite and within {MAX_MIC_RADIUS_M} m of the centre",
+                    mics[k]
+                ),
+            ));
+        }
+    }
+    let mut pose =
+        ArrayPose::new(id, position, yaw.to_radians(), pitch.to_radians(), roll.to_radians());
+    pose.geometry = a.geometry.as_ref().map(|g| g.get_ref().clone());
+    pose.mic_positions_m = a.positions.as_ref().map(|p| p.get_ref().clone()).unwrap_or_default();
+    pose.clock_offset_s = offset;
+    pose.clock_drift_ppm = drift;
+    Ok(pose)
 }
 
 impl Site {
@@ -176,33 +300,7 @@ impl Site {
         }
         let mut arrays: Vec<ArrayPose> = Vec::new();
         for entry in &file.array {
-            let a = entry.get_ref();
-            let finite = a
-                .position
-                .iter()
-                .chain(&[a.yaw_deg, a.pitch_deg, a.roll_deg])
-                .chain(&[a.clock_offset_s, a.clock_drift_ppm])
-                .all(|v| v.is_finite());
-            if !finite {
-                return Err(err(
-                    entry.span(),
-                    format!("array {}: position and angles must be finite", a.id),
-                ));
-            }
-            if arrays.iter().any(|p| p.id == a.id) {
-                return Err(err(entry.span(), format!("array id {} appears twice", a.id)));
-            }
-            let mut pose = ArrayPose::new(
-                a.id,
-                a.position,
-                a.yaw_deg.to_radians(),
-                a.pitch_deg.to_radians(),
-                a.roll_deg.to_radians(),
-            );
-            pose.geometry = a.geometry.clone();
-            pose.clock_offset_s = a.clock_offset_s;
-            pose.clock_drift_ppm = a.clock_drift_ppm;
-            arrays.push(pose);
+            arrays.push(array_pose(entry.get_ref(), &arrays, &err)?);
         }
         let room = match &file.room {
             Some(r) => {
@@ -223,15 +321,41 @@ impl Site {
                         "room: every min must be below its max (sizes positive)".into(),
                     ));
                 }
+                if min.iter().chain(&max).any(|v| v.abs() > MAX_COORDINATE_M) {
+                    return Err(err(
+                        r.span(),
+                        format!("room: corners must lie within {MAX_COORDINATE_M} m of the origin"),
+                    ));
+                }
                 Some(Room { min, max })
             }
             None => None,
         };
-        if file.sample_rate_hz == Some(0) {
+        if let Some(room) = &room {
+            for (entry, pose) in file.array.iter().zip(&arrays) {
+                let outside = (0..3).any(|i| {
+                    pose.position[i] < room.min[i] - ROOM_TOLERANCE_M
+                        || pose.position[i] > room.max[i] + ROOM_TOLERANCE_M
+                });
+                if outside {
+                    return Err(err(
+                        entry.get_ref().position.span(),
+                        format!(
+                            "array {}: position {:?} is outside the room {:?}..{:?}",
+                            pose.id, pose.position, room.min, room.max
+                        ),
+                    ));
+                }
+            }
+        }
+        if let Some(fs) = file.sample_rate_hz.filter(|fs| !(1_000..=384_000).contains(fs)) {
             return Err(ConfigError {
                 path: path.to_path_buf(),
-                line: None,
-                message: "sample_rate_hz must be positive".into(),
+                line: text
+                    .lines()
+                    .position(|l| l.trim_start().starts_with("sample_rate_hz"))
+                    .map(|i| i + 1),
+                message: format!("sample_rate_hz must be 1000 to 384000 Hz (got {fs})"),
             });
         }
         Ok(Self { arrays, room, sample_rate_hz: file.sample_rate_hz })
@@ -268,7 +392,7 @@ speed_of_sound_mps = 343.2
 [[array]]
 id = 1
 geometry = "respeaker-6mic"
-positions = [[0.0463, 0.0], [0.02315, 0.0401]]
+positions = [[0.0463, 0.0], [0.02315, 0.0401], [-0.02315, 0.0401], [-0.0463, 0.0]]
 position = [10.0, 2.0, 0.05]
 yaw_deg = 0.0
 clock_offset_s = 0.5
@@ -294,8 +418,8 @@ loss_db = 15.0
     fn bad_files_name_file_and_line() {
         let dup = "[[array]]\nid = 1\nposition = [0.0, 0.0, 0.0]\n\n[[array]]\nid = 1\nposition = [1.0, 0.0, 0.0]\n";
         let e = Site::parse(dup, Path::new("dup.toml")).unwrap_err();
-        assert_eq!(e.line, Some(5), "{e}"); // the second [[array]] header
-        assert!(e.to_string().starts_with("dup.toml:5: array id 1 appears twice"), "{e}");
+        assert_eq!(e.line, Some(6), "{e}"); // the second array's id
+        assert!(e.to_string().starts_with("dup.toml:6: array id 1 appears twice"), "{e}");
 
         let typo = "[[array]]\nid = 1\npositon = [0.0, 0.0, 0.0]\n";
         let e = Site::parse(typo, Path::new("typo.toml")).unwrap_err();
@@ -312,5 +436,51 @@ loss_db = 15.0
 
         let e = Site::load(Path::new("/nonexistent/site.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/site.toml: cannot read"), "{e}");
+    }
+
+    /// Every site input of issue 17 that used to be accepted (or to reach the filter as NaN)
+    /// is refused at the line of the offending value.
+    #[test]
+    fn absurd_values_are_refused_at_their_line() {
+        let base = "[[array]]\nid = 1\nposition = [1.0, 1.0, 0.0]\n";
+        let cases: &[(&str, usize, &str)] = &[
+            ("position = [1e16, 0.0, 0.0]", 3, "position must be finite and within"),
+            ("position = [1e300, 0.0, 0.0]", 3, "position must be finite and within"),
+            ("position = [nan, 0.0, 0.0]", 3, "position must be finite"),
+            ("position = [1.0, 1.0, 0.0]\nclock_drift_ppm = 1e12", 4, "clock_drift_ppm must be within"),
+            ("position = [1.0, 1.0, 0.0]\nclock_offset_s = inf", 4, "clock_offset_s must be within"),
+            ("position = [1.0, 1.0, 0.0]\nyaw_deg = 1e20", 4, "yaw_deg must be within"),
+            ("position = [1.0, 1.0, 0.0]\ngeometry = \"respeaker-7mic\"", 4, "geometry `respeaker-7mic` is unknown"),
+            ("position = [1.0, 1.0, 0.0]\npositions = []", 4, "positions lists 0 microphones"),
+            (
+                "position = [1.0, 1.0, 0.0]\npositions = [[0.0, 0.0], [1e9, 0.0], [0.0, 0.1], [0.1, 0.1]]",
+                4,
+                "microphone 1",
+            ),
+            ("position = [1.0, 1.0, 0.0]\ngeometry = \"custom\"", 4, "needs `positions`"),
+        ];
+        for (array_lines, line, message) in cases {
+            let text = base.replace("position = [1.0, 1.0, 0.0]", array_lines);
+            let e = Site::parse(&text, Path::new("s.toml")).unwrap_err();
+            assert_eq!(e.line, Some(*line), "{array_lines}: {e}");
+            assert!(e.message.contains(message), "{array_lines}: {e}");
+        }
+        let outside = format!("{base}[room]\nsize = [5.0, 5.0, 3.0]\n")
+            .replace("[1.0, 1.0, 0.0]", "[1.0, 9.0, 0.0]");
+        let e = Site::parse(&outside, Path::new("s.toml")).unwrap_err();
+        assert_eq!(e.line, Some(3), "{e}");
+        assert!(e.message.contains("outside the room"), "{e}");
+        let huge_room = format!("{base}[room]\nsize = [1e300, 5.0, 3.0]\n");
+        let e = Site::parse(&huge_room, Path::new("s.toml")).unwrap_err();
+        assert!(e.message.contains("corners must lie within"), "{e}");
+        let e =
+            Site::parse(&format!("sample_rate_hz = 7\n{base}"), Path::new("s.toml")).unwrap_err();
+        assert_eq!(e.line, Some(1), "{e}");
+        let e = Site::parse(&base.replace("id = 1", "id = 300"), Path::new("s.toml")).unwrap_err();
+        assert!(e.message.contains("ids 0 to 255"), "{e}");
+        // On the wall is inside; the bundled simulator site still reads.
+        let wall = format!("{base}[room]\nsize = [5.0, 5.0, 3.0]\n")
+            .replace("[1.0, 1.0, 0.0]", "[5.0, 1.0, 3.05]");
+        Site::parse(&wall, Path::new("s.toml")).unwrap();
     }
 }

@@ -7,15 +7,16 @@
 use std::collections::VecDeque;
 
 use crate::doa::{DoaConfig, DoaState, DoaWindow};
+use crate::doppler::{DopplerFrame, FrameCentre, DEFAULT_SPEED_OF_SOUND_MPS};
 use crate::dynamics::{sum_bpf_squared, AcousticSpeed, HoverCalibration, SpeedIntegrator};
 use crate::filter::{new_filter, Filter, FilterKind, Step};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
-use crate::observation::{Input, Spectrum};
+use crate::observation::{BpfPeak, Input, Spectrum};
 use crate::profile::Profile;
 use crate::site::Site;
-use crate::wake::{WakeConfig, WakeSpeed, WakeSplit};
+use crate::wake::{HoverPattern, WakeConfig, WakeSpeed, WakeSplit};
 
 /// Standard deviation given to the integrated horizontal speed while the wake cue of a leg
 /// has not settled, m/s.
@@ -26,14 +27,17 @@ const UNSETTLED_SPEED_SIGMA_MPS: f64 = 1.0;
 struct BpfFrame {
     /// Time, s.
     t: f64,
-    /// Σ BPF² over all rotors, Hz² (hover's for a yaw split).
+    /// Σ BPF² over all rotors, Hz² (hover's for a yaw split), of the groups normalised by
+    /// the hover pattern.
     sum_sq: f64,
     /// Distinct rotor-speed groups heard (2 for a yaw split heard by one half).
     groups: usize,
     /// The groups are a yaw's odd/even split (see `TrackerConfig::yaw_split_hz`).
     yaw_split: bool,
-    /// The groups' BPFs, Hz (empty for a yaw split).
+    /// The groups' BPFs as heard (not normalised), Hz.
     hz: Vec<f64>,
+    /// The groups' BPFs normalised by the hover pattern and merged, Hz.
+    normalised_hz: Vec<f64>,
 }
 
 /// Tunables of the pipeline.
@@ -58,6 +62,9 @@ pub struct TrackerConfig {
     pub min_separation_hz: f64,
     /// DoA or spectra older than this are stale, s.
     pub stale_s: f64,
+    /// Inputs of the tracked array further apart than this are a silence, s: the track
+    /// restarts after it (keeping only the hover calibration), as the drone may be anywhere.
+    pub max_gap_s: f64,
     /// Consecutive hover needed before the hover thrust is calibrated, s.
     pub calibration_hover_s: f64,
     /// A thrust excess beyond this many hover spreads (of the window mean) is significant.
@@ -87,6 +94,7 @@ impl Default for TrackerConfig {
             min_relative_amplitude: 0.25,
             min_separation_hz: 2.0,
             stale_s: 0.5,
+            max_gap_s: 2.0,
             calibration_hover_s: 1.0,
             accel_sigmas: 3.0,
             excess_window_s: 0.8,
@@ -99,8 +107,12 @@ impl Default for TrackerConfig {
 /// One position fix.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Fix {
-    /// Time, s.
+    /// Time it describes, s (host time base).
     pub t: f64,
+    /// When it became available, s (same time base): the end of the newest audio the array
+    /// had sent when the fix was emitted; no frame that arrived later went into it. The
+    /// tracker alone sets `t`; [`crate::session::Session`] sets the moment of its intake.
+    pub available: f64,
     /// Position, world ENU m.
     pub position: [f64; 3],
     /// Velocity, m/s.
@@ -114,19 +126,34 @@ pub struct Fix {
 }
 
 impl Fix {
-    /// The fix as one JSON object (the `aim track`/`aim replay` contract).
+    /// The fix as one JSON object (the `aim track`/`aim replay` contract). A coordinate or
+    /// time that is not finite prints as `null` (JSON has no NaN): the line stays valid.
     pub fn to_json(&self) -> String {
         format!(
-            "{{\"t\":{:.3},\"x\":{:.3},\"y\":{:.3},\"z\":{:.3},\"motion\":\"{}\",\"los\":{}}}",
-            self.t,
-            self.position[0],
-            self.position[1],
-            self.position[2],
+            "{{\"t\":{},\"available\":{},\"x\":{},\"y\":{},\"z\":{},\"motion\":\"{}\",\"los\":{}}}",
+            json_number(self.t),
+            json_number(self.available),
+            json_number(self.position[0]),
+            json_number(self.position[1]),
+            json_number(self.position[2]),
             self.motion.as_str(),
             self.los
         )
     }
 }
+
+/// `x` with three decimals, or `null` when it is not finite.
+fn json_number(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.3}")
+    } else {
+        "null".to_string()
+    }
+}
+
+/// Output instants whose [`Diagnostics`] a tracker keeps (the newest; older ones are dropped
+/// so that a tracker running for days stays in constant memory): 10 min at 10 Hz.
+pub const DIAGNOSTICS_KEPT: usize = 6000;
 
 /// Per-instant diagnostics, for evaluation.
 #[derive(Clone, Debug, PartialEq)]
@@ -159,12 +186,26 @@ pub struct Tracker {
     split: Option<WakeSplit>,
     /// Time of the newest spectrum frame given to `wake` and `split`, s.
     wake_last_t: f64,
+    /// The hover BPF group pattern (static imbalance), calibrated while still.
+    pattern: HoverPattern,
+    /// Time of the newest spectrum frame the pattern learnt from, s.
+    pattern_last_t: f64,
+    /// Each BPF frame's centre frequency for the Doppler cue.
+    centre: FrameCentre,
+    /// Time of the newest spectrum frame given to the Doppler cue, s.
+    doppler_last_t: f64,
     filter: Box<dyn Filter + Send>,
-    next_output: Option<f64>,
+    kind: FilterKind,
+    /// Index of the next output instant (instants are `k · output_period_s`).
+    next_output: Option<i64>,
+    /// Spans of audio the tracked array sent, s, merged, oldest first.
+    audio: VecDeque<(f64, f64)>,
+    /// Fixes only where audio was reported.
+    gate_on_audio: bool,
     last_output: Option<f64>,
     hover_run_s: f64,
     latest_input_t: f64,
-    diagnostics: Vec<Diagnostics>,
+    diagnostics: VecDeque<Diagnostics>,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -212,7 +253,14 @@ impl Tracker {
             wake: WakeSpeed::new(WakeConfig::default(), profile.wake_excess_per_mps()),
             split: WakeSplit::new(WakeConfig::split(), profile.wake_split_per_mps()),
             wake_last_t: f64::NEG_INFINITY,
+            pattern: HoverPattern::default(),
+            pattern_last_t: f64::NEG_INFINITY,
+            centre: FrameCentre::default(),
+            doppler_last_t: f64::NEG_INFINITY,
             filter: new_filter(kind),
+            kind,
+            audio: VecDeque::new(),
+            gate_on_audio: false,
             config,
             site,
             array_index,
@@ -222,7 +270,7 @@ impl Tracker {
             last_output: None,
             hover_run_s: 0.0,
             latest_input_t: f64::NEG_INFINITY,
-            diagnostics: Vec::new(),
+            diagnostics: VecDeque::new(),
         })
     }
 
@@ -236,27 +284,89 @@ impl Tracker {
         self.calibration.k_v()
     }
 
-    /// Diagnostics of every output instant so far.
-    pub fn diagnostics(&self) -> &[Diagnostics] {
-        &self.diagnostics
+    /// Diagnostics of the latest output instants, oldest first (at most
+    /// [`DIAGNOSTICS_KEPT`]).
+    pub fn diagnostics(&self) -> impl ExactSizeIterator<Item = &Diagnostics> {
+        self.diagnostics.iter()
     }
 
-    /// Feeds one input (in time order; older inputs than the newest are dropped) and returns
-    /// the fixes of every output instant up to it.
+    /// Says that `array_id` sent audio over `[from_s, to_s]`: with [`Self::gate_on_audio`],
+    /// output instants get a fix only where the tracked array sent audio.
+    pub fn add_audio(&mut self, array_id: u16, from_s: f64, to_s: f64) {
+        if array_id != self.array_id() || !(from_s.is_finite() && to_s.is_finite()) {
+            return;
+        }
+        match self.audio.back_mut() {
+            Some(last) if from_s <= last.1 && to_s >= last.0 => {
+                *last = (last.0.min(from_s), last.1.max(to_s));
+            }
+            _ => self.audio.push_back((from_s, to_s)),
+        }
+        // Spans older than every instant still to come are no longer needed.
+        let keep_from = self.last_output.unwrap_or(f64::NEG_INFINITY) - 1.0;
+        while self.audio.len() > 1 && self.audio.front().is_some_and(|a| a.1 < keep_from) {
+            self.audio.pop_front();
+        }
+    }
+
+    /// Feeds one input of the tracked array (in time order; inputs older than the newest and
+    /// other arrays' inputs are dropped) and returns the fixes of every output instant before
+    /// it.
     pub fn push(&mut self, input: Input) -> Vec<Fix> {
         let t = input.t();
-        if !t.is_finite() || t + 1e-9 < self.latest_input_t {
+        let id = self.array_id();
+        let own = match &input {
+            Input::Bearing(b) => b.array_id == id,
+            Input::Spectrum(s) => s.array_id == id,
+        };
+        if !own || !t.is_finite() || t + 1e-9 < self.latest_input_t {
             return Vec::new();
         }
-        let fixes = self.advance_to(t);
+        let gap = t - self.latest_input_t > self.config.max_gap_s;
+        let fixes = if gap && self.latest_input_t.is_finite() {
+            // Nothing is invented across a silence: instants up to the last input, then the
+            // track restarts at this one.
+            let fixes = self.advance_to(self.latest_input_t + 1e-9);
+            self.next_output = Some((t / self.config.output_period_s).ceil() as i64);
+            self.restart();
+            fixes
+        } else {
+            self.advance_to(t)
+        };
         self.latest_input_t = t;
-        let id = self.array_id();
         match input {
-            Input::Bearing(b) if b.array_id == id => self.window.push(b),
-            Input::Spectrum(s) if s.array_id == id => self.add_spectrum(&s),
-            _ => {}
+            Input::Bearing(b) => self.window.push(b),
+            Input::Spectrum(s) => self.add_spectrum(&s),
         }
         fixes
+    }
+
+    /// Emits the fixes of every output instant before `t` (the intake promises no input of
+    /// the tracked array stamped before `t` is still to come).
+    pub fn advance(&mut self, t: f64) -> Vec<Fix> {
+        if !t.is_finite() || !self.latest_input_t.is_finite() {
+            return Vec::new();
+        }
+        // Not across a silence: the next input decides whether the track restarts.
+        self.advance_to(t.min(self.latest_input_t + self.config.max_gap_s))
+    }
+
+    /// Forgets the flight after a silence: everything but the hover calibration.
+    fn restart(&mut self) {
+        let c = &self.config;
+        self.window = DoaWindow::new(c.doa.clone());
+        self.classifier = MotionClassifier::new(c.motion.clone());
+        self.speed = SpeedIntegrator::new(&self.profile);
+        self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
+        self.split = WakeSplit::new(WakeConfig::split(), self.profile.wake_split_per_mps());
+        self.wake_last_t = f64::NEG_INFINITY;
+        self.pattern_last_t = f64::NEG_INFINITY;
+        self.centre = FrameCentre::default();
+        self.doppler_last_t = f64::NEG_INFINITY;
+        self.filter = new_filter(self.kind);
+        self.spectra.clear();
+        self.last_output = None;
+        self.hover_run_s = 0.0;
     }
 
     /// Emits the fixes of every output instant up to and including the newest input.
@@ -269,21 +379,40 @@ impl Tracker {
         }
     }
 
-    /// Output instants strictly before `t`.
+    /// Fixes only where the tracked array reported audio ([`Self::add_audio`]), as the
+    /// intake does; without it every instant between inputs counts as heard (synthetic
+    /// inputs).
+    pub fn gate_on_audio(&mut self) {
+        self.gate_on_audio = true;
+    }
+
+    /// Whether the tracked array sent audio at `t`.
+    fn heard(&self, t: f64) -> bool {
+        !self.gate_on_audio || self.audio.iter().any(|a| a.0 <= t && t <= a.1)
+    }
+
+    /// Output instants strictly before `t`, those where the array sent audio.
     fn advance_to(&mut self, t: f64) -> Vec<Fix> {
         let period = self.config.output_period_s;
-        let next = *self.next_output.get_or_insert_with(|| (t / period).ceil() * period);
+        let mut k = *self.next_output.get_or_insert_with(|| (t / period).ceil() as i64);
         let mut fixes = Vec::new();
-        let mut k = 0u64;
-        let mut instant = next;
-        while instant < t {
-            if let Some(fix) = self.output(instant) {
-                fixes.push(fix);
+        loop {
+            let instant = k as f64 * period;
+            if instant >= t {
+                break;
             }
-            k += 1;
-            instant = next + k as f64 * period;
+            if self.heard(instant) {
+                if let Some(fix) = self.output(instant) {
+                    fixes.push(fix);
+                }
+                k += 1;
+                continue;
+            }
+            // Straight to the next audio heard (or to `t`), never instant by instant.
+            let next = self.audio.iter().map(|a| a.0).filter(|&a| a > instant).fold(t, f64::min);
+            k = (k + 1).max((next / period).ceil() as i64);
         }
-        self.next_output = Some(instant);
+        self.next_output = Some(k);
         fixes
     }
 
@@ -306,6 +435,8 @@ impl Tracker {
             return (Vec::new(), false);
         }
         let hover = self.calibration.hover_sum_sq();
+        let hover_split = self.pattern.split();
+        self.split.iter_mut().for_each(|w| w.set_hover_split(hover_split));
         let mut frames = Vec::new();
         // A yaw split says nothing of the wake.
         for f in self.spectra.iter().filter(|f| f.t > since && f.t <= t && !f.yaw_split) {
@@ -337,13 +468,31 @@ impl Tracker {
     fn add_spectrum(&mut self, s: &Spectrum) {
         let c = &self.config;
         let reference = (self.calibration.hover_sum_sq() / self.profile.rotors() as f64).sqrt();
-        let groups = bpf_groups(
+        let heard = bpf_groups(
             &s.peaks,
             &self.profile,
             reference,
             c.min_relative_amplitude,
             c.min_separation_hz,
         );
+        // Each group normalised by its hover level (the static imbalance taken out), groups
+        // that then fall together merged again.
+        let mut normalised: Vec<BpfPeak> =
+            heard.iter().map(|g| BpfPeak { hz: self.pattern.normalise(g.hz), ..*g }).collect();
+        normalised.sort_by(|a, b| a.hz.total_cmp(&b.hz));
+        let mut groups: Vec<BpfPeak> = Vec::new();
+        for p in normalised {
+            match groups.last_mut() {
+                Some(g) if p.hz - g.hz < c.min_separation_hz => {
+                    let a = g.amplitude + p.amplitude;
+                    g.hz = (g.hz * g.amplitude + p.hz * p.amplitude) / a;
+                    g.amplitude = a;
+                }
+                _ => groups.push(p),
+            }
+        }
+        let hz: Vec<f64> = heard.iter().map(|g| g.hz).collect();
+        let normalised_hz: Vec<f64> = groups.iter().map(|g| g.hz).collect();
         let yaw_split = match groups.as_slice() {
             // Against the hover BPF only once a hover has calibrated it (the profile's may be
             // off by more than the threshold).
@@ -355,11 +504,11 @@ impl Tracker {
         };
         if yaw_split {
             let sum_sq = self.calibration.hover_sum_sq();
-            let frame = BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split, hz: Vec::new() };
+            let frame = BpfFrame { t: s.t, sum_sq, groups: 2, yaw_split, hz, normalised_hz };
             self.spectra.push_back(frame);
         } else if let Some(sum_sq) = sum_bpf_squared(&groups, self.profile.rotors()) {
-            let hz = groups.iter().map(|g| g.hz).collect();
-            let frame = BpfFrame { t: s.t, sum_sq, groups: groups.len(), yaw_split, hz };
+            let frame =
+                BpfFrame { t: s.t, sum_sq, groups: groups.len(), yaw_split, hz, normalised_hz };
             self.spectra.push_back(frame);
         }
         let horizon = c.excess_window_s.max(c.split_memory_s) + c.stale_s;
@@ -421,10 +570,33 @@ impl Tracker {
         } else {
             self.hover_run_s = 0.0;
         }
+        // The hover group pattern from the frames heard still: in hover, or before the pattern
+        // is known in a still "yaw" (the imbalance's two groups are what makes it one).
+        let still = motion == MotionClass::Hover
+            || (motion == MotionClass::Yaw && !self.pattern.is_calibrated());
+        if still && !excess_significant {
+            let since = self.pattern_last_t;
+            for f in self.spectra.iter().filter(|f| f.t > since && f.t <= t) {
+                self.pattern.learn(&f.hz);
+            }
+        }
+        self.pattern_last_t = self.spectra.back().map_or(self.pattern_last_t, |f| f.t.min(t));
         let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
         let (cruise_speeds, wake_settled) = self.wake_speeds(t, motion, &mut speed);
         let los = doa.is_some_and(|d| d.los);
-        self.diagnostics.push(Diagnostics {
+        // Every BPF frame once, as its centre frequency (a yaw's split is no wake: left out).
+        let since = std::mem::replace(&mut self.doppler_last_t, t);
+        let f_ref = self.profile.hover_bpf_hz();
+        let doppler: Vec<DopplerFrame> = self
+            .spectra
+            .iter()
+            .filter(|f| f.t > since && f.t <= t && !f.yaw_split)
+            .filter_map(|f| self.centre.frame(f.t, &f.normalised_hz, f_ref))
+            .collect();
+        if self.diagnostics.len() >= DIAGNOSTICS_KEPT {
+            self.diagnostics.pop_front();
+        }
+        self.diagnostics.push_back(Diagnostics {
             doa,
             bpf_groups: groups,
             k_v: self.calibration.k_v(),
@@ -440,11 +612,14 @@ impl Tracker {
             speed,
             room: self.site.room,
             cruise_speeds: wake_settled.then_some(cruise_speeds),
+            doppler,
+            speed_of_sound_mps: DEFAULT_SPEED_OF_SOUND_MPS,
         };
         let est = self.filter.step(&step)?;
         let pc = &est.position_covariance;
         Some(Fix {
             t,
+            available: t,
             position: est.position,
             velocity: est.velocity,
             sigma: [

@@ -193,6 +193,172 @@ impl WakeSpeed {
     }
 }
 
+/// Centres (low, high) of two groups of values: two-means in one dimension, started from the
+/// extremes. `None` when fewer than two distinct values were given.
+fn two_means<I: Iterator<Item = f64>>(all: impl Fn() -> I) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) =
+        all().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), f| (l.min(f), h.max(f)));
+    if hi <= lo {
+        return None;
+    }
+    for _ in 0..32 {
+        let mid = 0.5 * (lo + hi);
+        let (mut low, mut high) = ((0.0, 0usize), (0.0, 0usize));
+        for f in all() {
+            let side = if f <= mid { &mut low } else { &mut high };
+            side.0 += f;
+            side.1 += 1;
+        }
+        let next = (low.0 / low.1 as f64, high.0 / high.1 as f64);
+        if next == (lo, hi) {
+            break;
+        }
+        (lo, hi) = next;
+    }
+    Some((lo, hi))
+}
+
+/// The static BPF group pattern of the drone in hover, calibrated on the spot.
+///
+/// A real drone does not hover with all rotors alike: a centre of gravity off the rotors'
+/// centre and the motors' thrust spread make some rotors hover faster than others (the
+/// population's drones: up to ≈ 3 %). The DSP hears that as up to four groups in hover, which
+/// the wake split would read as several m/s of cruise and the motion classifier as a tilt.
+/// While the drone is still, each heard group's BPF is kept (a drone's hover BPFs do not move:
+/// its mass does not); the sorted BPFs cut at gaps wider than `gap_hz` give the hover groups.
+/// A frame's group is then normalised by the level of the hover group it is nearest to (that
+/// group's BPF over the mean of the groups'), and the wake split is judged against the hover
+/// split measured the way the leg's is (two-means; its noise bias cancels too).
+#[derive(Clone, Debug)]
+pub struct HoverPattern {
+    /// Group BPFs heard while still, Hz, newest last.
+    heard: VecDeque<f64>,
+    /// Most BPFs kept.
+    capacity: usize,
+    /// BPFs needed before the pattern is used.
+    min_heard: usize,
+    /// Sorted BPFs further apart than this are different groups, Hz.
+    gap_hz: f64,
+    /// A group with less than this share of the BPFs is noise and joins its neighbour.
+    min_share: f64,
+    /// The hover groups' centres, Hz, ascending (empty before calibration).
+    centres: Vec<f64>,
+    /// Two-means split of the hover BPFs (0 before calibration).
+    split: f64,
+}
+
+impl Default for HoverPattern {
+    fn default() -> Self {
+        Self::new(400, 8, 2.0, 0.05)
+    }
+}
+
+impl HoverPattern {
+    /// A pattern keeping the last `capacity` group BPFs, used after `min_heard`; groups are cut
+    /// at gaps wider than `gap_hz` (Hz) and need `min_share` of the BPFs.
+    pub fn new(capacity: usize, min_heard: usize, gap_hz: f64, min_share: f64) -> Self {
+        Self {
+            heard: VecDeque::new(),
+            capacity,
+            min_heard,
+            gap_hz,
+            min_share,
+            centres: Vec::new(),
+            split: 0.0,
+        }
+    }
+
+    /// Adds the groups (Hz) of one frame heard in hover.
+    pub fn learn(&mut self, groups_hz: &[f64]) {
+        for &f in groups_hz.iter().filter(|f| f.is_finite() && **f > 0.0) {
+            self.heard.push_back(f);
+            if self.heard.len() > self.capacity {
+                self.heard.pop_front();
+            }
+        }
+        if self.heard.len() < self.min_heard {
+            return;
+        }
+        let mut sorted: Vec<f64> = self.heard.iter().copied().collect();
+        sorted.sort_by(f64::total_cmp);
+        // (sum, count) of each run of BPFs without a gap.
+        let mut runs: Vec<(f64, usize)> = Vec::new();
+        let mut prev = f64::NEG_INFINITY;
+        for f in sorted {
+            match runs.last_mut() {
+                Some(r) if f - prev <= self.gap_hz => {
+                    r.0 += f;
+                    r.1 += 1;
+                }
+                _ => runs.push((f, 1)),
+            }
+            prev = f;
+        }
+        // Runs too small to be a group join their nearer neighbour.
+        let min_count = (self.min_share * self.heard.len() as f64).ceil() as usize;
+        while runs.len() > 1 {
+            let Some(i) =
+                (0..runs.len()).filter(|&i| runs[i].1 < min_count).min_by_key(|&i| runs[i].1)
+            else {
+                break;
+            };
+            let centre = |r: (f64, usize)| r.0 / r.1 as f64;
+            let c = centre(runs[i]);
+            let j = match (i.checked_sub(1), (i + 1 < runs.len()).then_some(i + 1)) {
+                (Some(a), Some(b)) => {
+                    if c - centre(runs[a]) <= centre(runs[b]) - c {
+                        a
+                    } else {
+                        b
+                    }
+                }
+                (Some(a), None) => a,
+                (None, Some(b)) => b,
+                (None, None) => break,
+            };
+            let r = runs.remove(i);
+            let j = if j > i { j - 1 } else { j };
+            runs[j].0 += r.0;
+            runs[j].1 += r.1;
+        }
+        self.centres = runs.iter().map(|r| r.0 / r.1 as f64).collect();
+        // A drone heard as one hover group has no imbalance to subtract (two-means would only
+        // split the noise, which cruise's two real groups do not).
+        self.split = if self.centres.len() >= 2 {
+            two_means(|| self.heard.iter().copied()).map_or(0.0, |(lo, hi)| hi / lo - 1.0)
+        } else {
+            0.0
+        };
+    }
+
+    /// Relative split high/low − 1 of the hover BPFs, two-means (0 before calibration).
+    pub fn split(&self) -> f64 {
+        self.split
+    }
+
+    /// The hover groups' BPFs, Hz, ascending (empty before calibration).
+    pub fn centres(&self) -> &[f64] {
+        &self.centres
+    }
+
+    /// True once enough hover groups were heard.
+    pub fn is_calibrated(&self) -> bool {
+        !self.centres.is_empty()
+    }
+
+    /// A frame's group BPF (Hz) normalised to the mean hover level: divided by the level of the
+    /// nearest hover group relative to the mean of the groups.
+    pub fn normalise(&self, hz: f64) -> f64 {
+        if self.centres.len() < 2 {
+            return hz;
+        }
+        let mean = self.centres.iter().sum::<f64>() / self.centres.len() as f64;
+        let nearest =
+            self.centres.iter().copied().min_by(|a, b| (a - hz).abs().total_cmp(&(b - hz).abs()));
+        nearest.map_or(hz, |c| hz * mean / c)
+    }
+}
+
 /// Cruise speed from the front/rear split of the BPF groups (see the module documentation).
 #[derive(Clone, Debug)]
 pub struct WakeSplit {
@@ -200,14 +366,29 @@ pub struct WakeSplit {
     split_per_mps: f64,
     /// The leg's frames (group BPFs, Hz); the spread is that of the relative split.
     leg: LegFrames<Vec<f64>>,
+    /// The split heard in hover ([`HoverPattern::split`]): the wake's is the change from it.
+    hover_split: f64,
 }
 
 impl WakeSplit {
     /// An estimator for a drone whose relative split grows by `split_per_mps` per m/s; `None`
     /// when the profile gives no wake coefficient (the cue is then unavailable).
     pub fn new(config: WakeConfig, split_per_mps: f64) -> Option<Self> {
-        (split_per_mps > 0.0 && split_per_mps.is_finite())
-            .then(|| Self { split_per_mps, leg: LegFrames::new(config) })
+        (split_per_mps > 0.0 && split_per_mps.is_finite()).then(|| Self {
+            split_per_mps,
+            leg: LegFrames::new(config),
+            hover_split: 0.0,
+        })
+    }
+
+    /// Sets the relative split heard in hover ([`HoverPattern::split`]); the speed is read from
+    /// the change of the split against it. A static imbalance along the flight's axis adds to
+    /// or subtracts from the wake's split: the size of the change is the wake's either way
+    /// (as long as the wake's split stays below twice the hover's, or the hover's is small).
+    pub fn set_hover_split(&mut self, split: f64) {
+        if split.is_finite() && split >= 0.0 {
+            self.hover_split = split;
+        }
     }
 
     /// The leg is over (or has not begun): forget its frames.
@@ -223,27 +404,16 @@ impl WakeSplit {
     /// Centres (low, high) of the two groups over the leg's frames, Hz: two-means in one
     /// dimension, started from the extremes. `None` until both groups have been heard.
     fn clusters(&self) -> Option<(f64, f64)> {
-        let all = || self.leg.frames.iter().flat_map(|f| f.1.iter().copied());
-        let (mut lo, mut hi) =
-            all().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), f| (l.min(f), h.max(f)));
-        if hi <= lo {
-            return None;
+        two_means(|| self.leg.frames.iter().flat_map(|f| f.1.iter().copied()))
+    }
+
+    /// Sign of the leg's split change against the hover split (+1 when the split grew).
+    fn sign(&self, (lo, hi): (f64, f64)) -> f64 {
+        if hi / lo - 1.0 >= self.hover_split {
+            1.0
+        } else {
+            -1.0
         }
-        for _ in 0..32 {
-            let mid = 0.5 * (lo + hi);
-            let (mut low, mut high) = ((0.0, 0usize), (0.0, 0usize));
-            for f in all() {
-                let side = if f <= mid { &mut low } else { &mut high };
-                side.0 += f;
-                side.1 += 1;
-            }
-            let next = (low.0 / low.1 as f64, high.0 / high.1 as f64);
-            if next == (lo, hi) {
-                break;
-            }
-            (lo, hi) = next;
-        }
-        Some((lo, hi))
     }
 
     /// Relative split of one frame's groups against the clusters: the mean of each side it
@@ -280,7 +450,8 @@ impl WakeSplit {
         let clusters = self.clusters()?;
         let split = Self::frame_split(groups, clusters);
         self.leg.learn_spread(split - (clusters.1 / clusters.0 - 1.0));
-        Some((split / self.split_per_mps, self.leg.frame_sigma() / self.split_per_mps))
+        let change = self.sign(clusters) * (split - self.hover_split);
+        Some((change / self.split_per_mps, self.leg.frame_sigma() / self.split_per_mps))
     }
 
     /// Horizontal speed of the leg and its standard deviation, m/s, once enough frames were
@@ -288,7 +459,8 @@ impl WakeSplit {
     pub fn estimate(&self) -> Option<(f64, f64)> {
         let sigma = self.leg.mean_sigma_mps(self.split_per_mps)?;
         let (lo, hi) = self.clusters()?;
-        Some(((hi / lo - 1.0) / self.split_per_mps, sigma))
+        let change = (hi / lo - 1.0 - self.hover_split).abs();
+        Some((change / self.split_per_mps, sigma))
     }
 }
 
@@ -296,6 +468,12 @@ impl WakeSplit {
 mod tests {
     use super::*;
     use crate::profile::Profile;
+
+    /// A Mini 2 with a 2 % wake loss per m/s (test data: the bundled profile has no wake
+    /// constant; a calibrated one would be added by hand).
+    fn wake_drone() -> Profile {
+        Profile { wake_loss_per_mps: 0.02, ..Profile::dji_mini_2() }
+    }
 
     #[test]
     fn averages_the_leg_and_reports_the_measured_spread() {
@@ -369,7 +547,7 @@ mod tests {
         // The excess of a frame hearing the rear group alone is twice the leg's, of one
         // hearing the front alone zero: a leg mostly heard through its louder rear group
         // reads fast. The split reads each frame against the other group, so the speed stays.
-        let k = Profile::dji_mini_2().wake_split_per_mps();
+        let k = wake_drone().wake_split_per_mps();
         for rear_share in [0.2, 0.5, 0.8] {
             let (w, frames) = split_leg(1.5, k, rear_share, |_| 1.0);
             // Nothing before the leg settles (1.5 s: frames 0–5).
@@ -392,7 +570,7 @@ mod tests {
     #[test]
     fn a_doppler_shift_scales_both_groups_and_leaves_the_split() {
         // ±0.9 % Doppler, more than the 1 % excess at 1.5 m/s: the split speed does not move.
-        let k = Profile::dji_mini_2().wake_split_per_mps();
+        let k = wake_drone().wake_split_per_mps();
         let (w, _) = split_leg(1.5, k, 0.5, |_| 1.009);
         let (v_up, _) = w.estimate().unwrap();
         let (w, _) = split_leg(1.5, k, 0.5, |_| 0.991);
@@ -402,7 +580,7 @@ mod tests {
         // Control: read as a thrust excess against the hover BPF, the +0.9 % shift alone would
         // be 2.6 m/s of speed.
         let excess = 1.009f64.powi(2) - 1.0;
-        let k_excess = Profile::dji_mini_2().wake_excess_per_mps();
+        let k_excess = wake_drone().wake_excess_per_mps();
         assert!(excess / k_excess > 2.0, "{}", excess / k_excess);
     }
 
@@ -410,7 +588,7 @@ mod tests {
     fn the_split_coefficient_is_the_wake_model() {
         // Quad X, 2 % loss per m/s, nose-first between arms: the two rear rotors sit 0.707
         // downstream; for equal thrust they spin (1 − 0.02·0.707·1.5)^(−½) times faster.
-        let p = Profile::dji_mini_2();
+        let p = wake_drone();
         let ratio = (1.0 - 0.02 * std::f64::consts::FRAC_1_SQRT_2 * 1.5).powf(-0.5);
         let v = (ratio - 1.0) / p.wake_split_per_mps();
         // The coefficient is the linear term: the second-order one reads 1.6 % fast here.
@@ -427,5 +605,79 @@ mod tests {
             assert!(w.push(i as f64 * 0.25 + 0.2, &[]).is_none());
         }
         assert!(w.estimate().is_none());
+    }
+
+    /// Frames of an imbalanced drone: front rotors at 322 and 326 Hz, rear ones 3.7 % faster
+    /// (as a drawn drone of square10-los seed 104 hovers), the rear ones `k`·v further above in
+    /// cruise;
+    /// each frame hears a pseudo-random subset of the four with 0.3 Hz of noise.
+    fn imbalanced_frames(v: f64, k: f64, n: usize, seed: u64) -> Vec<Vec<f64>> {
+        let mut rng = crate::testutil::Rng::new(seed);
+        let wake = 1.0 + k * v;
+        let rotors = [322.0, 326.0, 334.0 * wake, 338.0 * wake];
+        (0..n)
+            .map(|i| {
+                let mask = [0b1111, 0b0011, 0b1100, 0b0101, 0b1010, 0b1001][i % 6];
+                let mut groups: Vec<f64> = (0..4)
+                    .filter(|b| mask & (1 << b) != 0)
+                    .map(|b| rotors[b] + 0.3 * rng.normal())
+                    .collect();
+                groups.sort_by(f64::total_cmp);
+                groups
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_hover_pattern_takes_the_static_imbalance_out_of_the_split() {
+        let k = wake_drone().wake_split_per_mps();
+        let mut pattern = HoverPattern::default();
+        assert!(!pattern.is_calibrated() && pattern.split() == 0.0);
+        for groups in imbalanced_frames(0.0, k, 40, 3) {
+            pattern.learn(&groups);
+        }
+        // The four hover rotors are found, and normalised they all read the mean hover BPF.
+        let centres = pattern.centres().to_vec();
+        assert_eq!(centres.len(), 4, "{centres:?}");
+        for (c, truth) in centres.iter().zip([322.0, 326.0, 334.0, 338.0]) {
+            assert!((c - truth).abs() < 0.2, "{centres:?}");
+        }
+        for f in [322.0, 326.0, 334.0, 338.0] {
+            assert!((pattern.normalise(f) - 330.0).abs() < 0.2, "{f}: {}", pattern.normalise(f));
+        }
+        // Oracle: a hover leg reads ~0 m/s, a 1.5 m/s cruise leg 1.5 m/s, against the hover
+        // split; without the calibration (control) the hover alone reads as fast cruise.
+        let leg = |v: f64, hover_split: Option<f64>| {
+            let mut w = WakeSplit::new(WakeConfig::split(), k).unwrap();
+            if let Some(s) = hover_split {
+                w.set_hover_split(s);
+            }
+            for (i, groups) in imbalanced_frames(v, k, 80, 11).iter().enumerate() {
+                w.push(i as f64 * 0.25, groups);
+            }
+            w.estimate().unwrap()
+        };
+        let (v_hover, sigma) = leg(0.0, Some(pattern.split()));
+        assert!(v_hover.abs() < 0.2_f64.max(3.0 * sigma), "hover: {v_hover} ± {sigma}");
+        let (v_cruise, sigma) = leg(1.5, Some(pattern.split()));
+        assert!((v_cruise - 1.5).abs() < 0.25_f64.max(3.0 * sigma), "cruise: {v_cruise} ± {sigma}");
+        let (v_uncalibrated, _) = leg(0.0, None);
+        assert!(v_uncalibrated > 3.0, "control: {v_uncalibrated}");
+    }
+
+    #[test]
+    fn too_few_hover_groups_leave_the_frames_alone() {
+        let mut pattern = HoverPattern::default();
+        pattern.learn(&[324.0, 335.0]);
+        assert!(!pattern.is_calibrated());
+        assert_eq!(pattern.normalise(335.0), 335.0);
+        // A balanced drone: one group, nothing to normalise.
+        let mut pattern = HoverPattern::default();
+        for _ in 0..10 {
+            pattern.learn(&[329.5, f64::NAN, -1.0]);
+        }
+        assert_eq!(pattern.centres(), &[329.5]);
+        assert_eq!(pattern.normalise(331.0), 331.0);
+        assert_eq!(pattern.split(), 0.0);
     }
 }

@@ -107,6 +107,12 @@ pub enum YawError {
     /// A tunable is out of its range.
     #[error("yaw estimator: {0}")]
     BadConfig(String),
+    /// The profile lacks the airframe constants the yaw size needs.
+    #[error(
+        "yaw estimator: the profile gives no drag-torque coefficient k_h or yaw inertia i_z \
+         (measured values are needed; none are published for most drones)"
+    )]
+    UnknownAirframe,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -155,6 +161,9 @@ impl YawEstimator {
         ];
         if let Some((_, msg)) = checks.iter().find(|(ok, _)| !ok) {
             return Err(YawError::BadConfig((*msg).into()));
+        }
+        if !(profile.k_h > 0.0 && profile.i_z > 0.0) {
+            return Err(YawError::UnknownAirframe);
         }
         let n = f64::from(profile.blades);
         Ok(Self {
@@ -347,6 +356,19 @@ fn estimate(frames: &[Frame], config: &YawConfig) -> Option<YawEvent> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A Mini 2 with airframe constants for the yaw size (estimates: a 1.2 % torque-to-thrust
+    /// ratio per metre and a 249 g quad's inertia; the bundled profile carries none).
+    fn airframe() -> Profile {
+        Profile { k_h: 2.72e-7, i_z: 7.5e-4, ..Profile::dji_mini_2() }
+    }
+
+    #[test]
+    fn a_profile_without_k_h_or_i_z_is_refused() {
+        let e = YawEstimator::new(&Profile::dji_mini_2(), YawConfig::default()).err();
+        assert!(matches!(e, Some(YawError::UnknownAirframe)), "{e:?}");
+        assert!(YawEstimator::new(&airframe(), YawConfig::default()).is_ok());
+    }
     use crate::testutil::Rng;
 
     /// A rest-to-rest turn of `delta` rad: raised-cosine rate ramps of peak acceleration
@@ -430,7 +452,7 @@ mod tests {
 
     #[test]
     fn recovers_the_size_of_synthetic_turns_either_way() {
-        let p = Profile::dji_mini_2();
+        let p = airframe();
         for delta_deg in [90.0f64, -90.0, 45.0, 180.0] {
             let events = run(&p, delta_deg.to_radians(), 0.01, 0.0, 0.0, 1);
             assert_eq!(events.len(), 1, "{delta_deg}: {events:?}");
@@ -453,7 +475,7 @@ mod tests {
         // Spectra merge the two groups below 2 Hz apart: the edges of each burst where
         // |β| < c·2 Hz are lost. With this profile c = k_h/(n² I_z)·(N/2)·2·BPF, and a
         // raised-cosine burst loses the fraction 1 − cos(asin(β_lost/β_peak)) of its area.
-        let p = Profile::dji_mini_2();
+        let p = airframe();
         let hover = p.hover_bpf_hz();
         let c = p.k_h / (4.0 * p.i_z) * 2.0 * 2.0 * hover;
         let lost = 1.0 - (c * 2.0 / 180f64.to_radians()).asin().cos();
@@ -471,7 +493,7 @@ mod tests {
     fn coarse_noisy_spectra_stay_within_their_sigma() {
         // Spectra every 0.256 s (the firmware's hop) with 0.5 Hz frequency noise: over 40
         // seeded turns the errors are unbiased within their reported sigma.
-        let p = Profile::dji_mini_2();
+        let p = airframe();
         let mut z2 = 0.0;
         let k = 40;
         for seed in 0..k {
@@ -492,7 +514,7 @@ mod tests {
 
     #[test]
     fn splits_while_moving_are_not_yaw_and_a_set_off_closes_the_phase() {
-        let p = Profile::dji_mini_2();
+        let p = airframe();
         let hover = p.hover_bpf_hz();
         let mut est = YawEstimator::new(&p, YawConfig::default()).unwrap();
         // Cruise with a wake split of 8 Hz while moving: no phase, no event.
@@ -533,7 +555,7 @@ mod tests {
     #[test]
     fn the_torque_law_sets_the_acceleration_scale() {
         // |β| of a split against dynamics::yaw_acceleration with the odd group high.
-        let p = Profile::dji_mini_2();
+        let p = airframe();
         let est = YawEstimator::new(&p, YawConfig::default()).unwrap();
         let g = [BpfPeak { hz: 340.0, amplitude: 1.0 }, BpfPeak { hz: 316.0, amplitude: 1.0 }];
         let law = crate::dynamics::yaw_acceleration(

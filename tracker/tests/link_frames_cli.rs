@@ -79,3 +79,28 @@ fn a_missing_recording_is_a_clear_error() {
         "{stderr}"
     );
 }
+
+/// `aim frames --errors F 2>&1 | head -1`: stdout and stderr are one pipe whose reader goes
+/// away after a line. Writing the damage notes to the closed stderr must not panic (exit
+/// status 101); the run ends as a closed stdout does, with status 0.
+#[test]
+fn a_closed_stderr_is_not_a_panic() {
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("noise-{}.aimraw", std::process::id()));
+    std::fs::write(&path, random_bytes(1 << 20, 0x5EED_0003, true)).unwrap();
+    let (reader, writer) = std::io::pipe().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_aim"))
+        .args(["frames", "--errors"])
+        .arg(&path)
+        .stdout(writer.try_clone().unwrap())
+        .stderr(writer)
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(reader), &mut first).unwrap();
+    assert!(first.contains("chunk 1:"), "{first}");
+    // The reader is dropped here, like `head -1` exiting.
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(0), "{status:?}");
+    let _ = std::fs::remove_file(&path);
+}

@@ -154,28 +154,10 @@ fn open_envelope(raw: &[u8]) -> Result<(u8, Header, &[u8]), DecodeError> {
 fn decode_body(kind: Kind, payload: &[u8]) -> Result<Body, DecodeError> {
     let err = |_| DecodeError::Payload(Some(kind));
     Ok(match kind {
-        Kind::Hello => Body::Hello(postcard::take_from_bytes(payload).map_err(err)?.0),
+        Kind::Hello => Body::Hello(crate::Hello::from_payload(payload).map_err(err)?),
         Kind::Doa => Body::Doa(postcard::take_from_bytes(payload).map_err(err)?.0),
-        Kind::Peaks => {
-            // The appended fields default when an older frame ends before them (rule 3).
-            let (base, rest) =
-                postcard::take_from_bytes::<crate::frame::PeaksBase>(payload).map_err(err)?;
-            let appended = if rest.is_empty() {
-                None
-            } else {
-                Some(postcard::take_from_bytes::<crate::frame::PeaksAppended>(rest).map_err(err)?.0)
-            };
-            let (detection, quality) =
-                appended.map_or_else(Default::default, |a| (a.detection, a.quality));
-            Body::Peaks(crate::frame::Peaks {
-                span_samples: base.span_samples,
-                bpf_chz: base.bpf_chz,
-                peaks: base.peaks,
-                detection,
-                quality,
-            })
-        }
-        Kind::Health => Body::Health(postcard::take_from_bytes(payload).map_err(err)?.0),
+        Kind::Peaks => Body::Peaks(crate::Peaks::from_payload(payload).map_err(err)?),
+        Kind::Health => Body::Health(crate::Health::from_payload(payload).map_err(err)?),
     })
 }
 

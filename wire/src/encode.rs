@@ -65,10 +65,22 @@ fn encode_raw(frame: &Frame, raw: &mut [u8; MAX_RAW_LEN]) -> Result<usize, Encod
     let payload_room = raw.len() - CRC_LEN;
     let payload = &mut raw[at..payload_room];
     let written = match &frame.body {
-        Body::Hello(p) => postcard::to_slice(p, payload).map(|s| s.len()),
+        Body::Hello(p) => postcard::to_slice(p, payload).map(|s| s.len()).and_then(|n| {
+            // The chip and clock report is appended only when set (see `Hello::chip_revision`).
+            match p.clock_report() {
+                Some(clock) => postcard::to_slice(&clock, &mut payload[n..]).map(|s| n + s.len()),
+                None => Ok(n),
+            }
+        }),
         Body::Doa(p) => postcard::to_slice(p, payload).map(|s| s.len()),
         Body::Peaks(p) => postcard::to_slice(p, payload).map(|s| s.len()),
-        Body::Health(p) => postcard::to_slice(p, payload).map(|s| s.len()),
+        Body::Health(p) => postcard::to_slice(p, payload).map(|s| s.len()).and_then(|n| {
+            // The microphone levels are appended only when there are any.
+            match p.mic_report() {
+                Some(mics) => postcard::to_slice(&mics, &mut payload[n..]).map(|s| n + s.len()),
+                None => Ok(n),
+            }
+        }),
     }
     .map_err(|_| EncodeError::Payload)?;
     at += written;

@@ -8,6 +8,10 @@ use crate::fixed;
 pub const MAX_MICS: usize = 8;
 /// Most spectral peaks a `Peaks` frame carries.
 pub const MAX_PEAKS: usize = 4;
+/// Most bytes of the panic message a `Hello` carries ([`Hello::panic_message`]).
+pub const MAX_PANIC_MESSAGE: usize = 48;
+/// Bytes of a chip unique ID ([`Hello::unique_id`]: the STM32's 96-bit UID).
+pub const UNIQUE_ID_LEN: usize = 12;
 
 /// Degrees per radian (f32), used by the unit conversions.
 const DEG_PER_RAD: f32 = 57.295_78;
@@ -73,15 +77,31 @@ impl Kind {
     pub const fn max_payload_len(self) -> usize {
         match self {
             // version 3 + rate u32 5 + block u16 3 + count 1 + 8 mics x 2 x i16 3
-            Kind::Hello => 3 + 5 + 3 + 1 + MAX_MICS * 2 * 3,
+            // + reset cause 1 + boot count u32 5 + unique id 12 + message length 1 + message
+            // + chip revision u16 3 + clock source 1 + sysclk u32 5
+            Kind::Hello => {
+                3 + 5
+                    + 3
+                    + 1
+                    + MAX_MICS * 2 * 3
+                    + 1
+                    + 5
+                    + UNIQUE_ID_LEN
+                    + 1
+                    + MAX_PANIC_MESSAGE
+                    + 3
+                    + 1
+                    + 5
+            }
             // span u32 5 + azimuth i16 3 + zenith u16 3 + residual u16 3 + quality 1 + pairs 1
             Kind::Doa => 5 + 3 + 3 + 3 + 1 + 1,
             // span u32 5 + bpf u32 5 + count 1 + 4 x (hz u32 5 + amplitude i16 3 + harmonicity 1)
             // + detection 1 + count 1 + 4 x quality 1 (appended)
             Kind::Peaks => 5 + 5 + 1 + MAX_PEAKS * (5 + 3 + 1) + 1 + 1 + MAX_PEAKS,
             // blocks, clipped u32 5 each + peak i16 3 + exponent i8 1
-            // + cycles, overruns, dropped u32 5 each + queue depth 1
-            Kind::Health => 5 + 5 + 3 + 1 + 5 * 3 + 1,
+            // + cycles, overruns, dropped u32 5 each + queue depth 1 + 9 loss counters u32 5 each
+            // + microphone count 1 + 8 x (rms, dc) i16 3 each
+            Kind::Health => 5 + 5 + 3 + 1 + 5 * 3 + 1 + 9 * 5 + 1 + MAX_MICS * 2 * 3,
         }
     }
 
@@ -143,9 +163,14 @@ impl Body {
     }
 }
 
-/// Sent at start-up and periodically (default every 5 s): firmware version and the array's
-/// sampling and geometry, so a host can check it against its site file.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+/// Sent at start-up and periodically (default every 5 s): firmware version, the array's
+/// sampling and geometry (so a host can check it against its site file), and who the board is
+/// and why it started (so a host notices a reboot and two boards claiming one id).
+///
+/// The fields after `mic_positions_decimm` were appended later (compatibility rule 3): a
+/// payload without them (older firmware, the simulator's old recordings) decodes with their
+/// defaults: reset cause [`ResetCause::Unknown`], boot count 0, unique ID all zero, no message.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize)]
 pub struct Hello {
     /// Firmware version `[major, minor, patch]`.
     pub firmware_version: [u8; 3],
@@ -156,6 +181,209 @@ pub struct Hello {
     /// Microphone positions `[x, y]` in the array frame (x right, y forward), units of 0.1 mm
     /// (range ±3.2767 m), in slot order.
     pub mic_positions_decimm: heapless::Vec<[i16; 2], MAX_MICS>,
+    /// Why the board last started: a [`ResetCause`] code (unknown codes are kept as sent).
+    pub reset_cause: u8,
+    /// Starts of the firmware since power-on (1 for the first; 0: not reported). It is kept
+    /// in RAM that a reset does not clear, so a power cycle starts it again at 1; a host
+    /// also sees a reboot as the sample index going back.
+    pub boot_count: u32,
+    /// The chip's unique ID (STM32: the 96-bit UID, the bytes as the chip stores them; all zero:
+    /// not reported, e.g. simulation).
+    pub unique_id: [u8; UNIQUE_ID_LEN],
+    /// The panic that caused the last reset, as the firmware recorded it before resetting:
+    /// `file:line message`, cut to [`MAX_PANIC_MESSAGE`] bytes at a character boundary; empty
+    /// when the last reset was not a panic.
+    pub panic_message: heapless::String<MAX_PANIC_MESSAGE>,
+    /// The chip's silicon revision as the chip reports it (STM32: REV_ID of DBGMCU_IDCODE,
+    /// e.g. `0x2003` = revision V, `0x1003` = revision Y; [`stm32h7_revision_name`]); 0: not
+    /// reported. Appended after `panic_message` (rule 3) with [`Hello::clock_source`] and
+    /// [`Hello::sysclk_hz`]; the three are sent only when one of them is set, so a `Hello`
+    /// without them (simulation, older firmware) keeps its bytes. Fields appended after them
+    /// later must send them (zeros allowed) first.
+    #[serde(skip)]
+    pub chip_revision: u16,
+    /// Where the core and audio clocks come from: a [`ClockSource`] code (0: not reported).
+    #[serde(skip)]
+    pub clock_source: u8,
+    /// Core clock the firmware runs at, Hz (0: not reported).
+    #[serde(skip)]
+    pub sysclk_hz: u32,
+}
+
+/// The array id a board derives from its chip unique ID when no id was set for it: 1 + the
+/// CRC-32 of the 12 ID bytes modulo 255, so 1..=255 (0 is left for "not set"). The same
+/// function on the host maps a unique ID in a site file to the id its board will send. Two
+/// boards collide with probability 1/255 per pair; a host that sees two unique IDs under one
+/// array id reports it (`aim frames`), and such a board is then given an id at build time.
+pub fn derived_array_id(unique_id: &[u8; UNIQUE_ID_LEN]) -> u8 {
+    // The remainder is below 255, so the sum fits a u8.
+    1 + (crate::crc32(unique_id) % 255) as u8
+}
+
+/// The part of a [`Hello`] payload every version has.
+#[derive(Deserialize)]
+struct HelloBase {
+    firmware_version: [u8; 3],
+    sample_rate_hz: u32,
+    block_len: u16,
+    mic_positions_decimm: heapless::Vec<[i16; 2], MAX_MICS>,
+}
+
+/// The fields appended to [`Hello`] for start-up reporting.
+#[derive(Deserialize)]
+struct HelloStart {
+    reset_cause: u8,
+    boot_count: u32,
+    unique_id: [u8; UNIQUE_ID_LEN],
+    panic_message: heapless::String<MAX_PANIC_MESSAGE>,
+}
+
+/// The fields appended to [`Hello`] for the chip and clock report (sent only when set).
+#[derive(Serialize, Deserialize)]
+pub(crate) struct HelloClock {
+    pub(crate) chip_revision: u16,
+    pub(crate) clock_source: u8,
+    pub(crate) sysclk_hz: u32,
+}
+
+/// Where a board's clocks come from, as [`Hello::clock_source`] reports it. The codes are
+/// pinned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+#[non_exhaustive]
+pub enum ClockSource {
+    /// Not reported (older firmware, simulation).
+    Unknown = 0,
+    /// The external clock in bypass mode (NUCLEO: the ST-LINK's 8 MHz): the sample rate is as
+    /// exact as that crystal.
+    HseBypass = 1,
+    /// The internal RC oscillator, because the external clock did not start: the sample rate
+    /// is only as exact as the RC oscillator's trim (a fault to fix, reported so a host knows).
+    Hsi = 2,
+}
+
+impl ClockSource {
+    /// The source of a code, or `None` for a code this version does not know.
+    pub fn from_code(code: u8) -> Option<ClockSource> {
+        match code {
+            0 => Some(ClockSource::Unknown),
+            1 => Some(ClockSource::HseBypass),
+            2 => Some(ClockSource::Hsi),
+            _ => None,
+        }
+    }
+
+    /// The code on the wire.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// Lower-case name, as printed by `aim frames`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ClockSource::Unknown => "unknown",
+            ClockSource::HseBypass => "hse-bypass",
+            ClockSource::Hsi => "hsi",
+        }
+    }
+}
+
+/// The STM32H742/743/750/753 revision letter of a DBGMCU_IDCODE REV_ID (ST errata sheet
+/// ES0392: `0x1001` Z, `0x1003` Y, `0x2001` X, `0x2003` V), or `None` for another value.
+/// Revision V is the one that runs at 480 MHz; the earlier ones stop at 400 MHz.
+pub const fn stm32h7_revision_name(rev_id: u16) -> Option<&'static str> {
+    match rev_id {
+        0x1001 => Some("Z"),
+        0x1003 => Some("Y"),
+        0x2001 => Some("X"),
+        0x2003 => Some("V"),
+        _ => None,
+    }
+}
+
+/// Why a board started, as [`Hello::reset_cause`] reports it. The codes are pinned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+#[non_exhaustive]
+pub enum ResetCause {
+    /// Not reported (older firmware, simulation) or no flag set.
+    Unknown = 0,
+    /// Power-on reset.
+    PowerOn = 1,
+    /// The reset pin (NRST), e.g. the reset button or a debugger.
+    Pin = 2,
+    /// Brown-out: the supply dipped.
+    BrownOut = 3,
+    /// A software reset the firmware did not attribute to a panic or a fault.
+    Software = 4,
+    /// The independent watchdog: the processing loop stopped feeding it.
+    Watchdog = 5,
+    /// The window watchdog.
+    WindowWatchdog = 6,
+    /// An illegal low-power entry.
+    LowPower = 7,
+    /// A panic: the firmware logged it, kept its message ([`Hello::panic_message`]) and reset.
+    Panic = 8,
+    /// A CPU fault (hard fault, stack overflow into the guard region): recorded, then reset.
+    Fault = 9,
+}
+
+impl ResetCause {
+    /// Every cause, in code order.
+    pub const ALL: [ResetCause; 10] = [
+        ResetCause::Unknown,
+        ResetCause::PowerOn,
+        ResetCause::Pin,
+        ResetCause::BrownOut,
+        ResetCause::Software,
+        ResetCause::Watchdog,
+        ResetCause::WindowWatchdog,
+        ResetCause::LowPower,
+        ResetCause::Panic,
+        ResetCause::Fault,
+    ];
+
+    /// The cause of a code, or `None` for a code this version does not know.
+    pub fn from_code(code: u8) -> Option<ResetCause> {
+        ResetCause::ALL.get(usize::from(code)).copied()
+    }
+
+    /// The code on the wire.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// Lower-case name, as printed by `aim frames`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ResetCause::Unknown => "unknown",
+            ResetCause::PowerOn => "power-on",
+            ResetCause::Pin => "pin",
+            ResetCause::BrownOut => "brown-out",
+            ResetCause::Software => "software",
+            ResetCause::Watchdog => "watchdog",
+            ResetCause::WindowWatchdog => "window-watchdog",
+            ResetCause::LowPower => "low-power",
+            ResetCause::Panic => "panic",
+            ResetCause::Fault => "fault",
+        }
+    }
+}
+
+/// Decodes a payload of fields every version has, then, if bytes follow, the appended fields
+/// `E`; a payload that ends after the base gives `E::default()`. Returns both and the bytes
+/// after them (fields appended by a later version).
+fn base_and_appended<B, E>(payload: &[u8]) -> postcard::Result<(B, Option<E>, &[u8])>
+where
+    B: serde::de::DeserializeOwned,
+    E: serde::de::DeserializeOwned,
+{
+    let (base, rest) = postcard::take_from_bytes::<B>(payload)?;
+    if rest.is_empty() {
+        return Ok((base, None, rest));
+    }
+    let (appended, rest) = postcard::take_from_bytes::<E>(rest)?;
+    Ok((base, Some(appended), rest))
 }
 
 impl Hello {
@@ -172,7 +400,71 @@ impl Hello {
             let _ =
                 mic_positions_decimm.push([fixed::to_i16(p[0], 1.0e4), fixed::to_i16(p[1], 1.0e4)]);
         }
-        Hello { firmware_version, sample_rate_hz, block_len, mic_positions_decimm }
+        Hello {
+            firmware_version,
+            sample_rate_hz,
+            block_len,
+            mic_positions_decimm,
+            ..Hello::default()
+        }
+    }
+
+    /// Decodes a payload; the start-up fields and the chip and clock report default when
+    /// absent (older firmware, simulation).
+    pub(crate) fn from_payload(payload: &[u8]) -> postcard::Result<Hello> {
+        let (base, start, rest) = base_and_appended::<HelloBase, HelloStart>(payload)?;
+        let mut hello = Hello {
+            firmware_version: base.firmware_version,
+            sample_rate_hz: base.sample_rate_hz,
+            block_len: base.block_len,
+            mic_positions_decimm: base.mic_positions_decimm,
+            ..Hello::default()
+        };
+        if let Some(s) = start {
+            hello.reset_cause = s.reset_cause;
+            hello.boot_count = s.boot_count;
+            hello.unique_id = s.unique_id;
+            hello.panic_message = s.panic_message;
+        }
+        if !rest.is_empty() {
+            let (clock, _) = postcard::take_from_bytes::<HelloClock>(rest)?;
+            hello.chip_revision = clock.chip_revision;
+            hello.clock_source = clock.clock_source;
+            hello.sysclk_hz = clock.sysclk_hz;
+        }
+        Ok(hello)
+    }
+
+    /// The chip and clock report, when it is to be sent (any of its fields set).
+    pub(crate) fn clock_report(&self) -> Option<HelloClock> {
+        (self.chip_revision != 0 || self.clock_source != 0 || self.sysclk_hz != 0).then_some(
+            HelloClock {
+                chip_revision: self.chip_revision,
+                clock_source: self.clock_source,
+                sysclk_hz: self.sysclk_hz,
+            },
+        )
+    }
+
+    /// The clock source, or `None` for a code this version does not know.
+    pub fn clock_source(&self) -> Option<ClockSource> {
+        ClockSource::from_code(self.clock_source)
+    }
+
+    /// The reset cause, or `None` for a code this version does not know.
+    pub fn reset_cause(&self) -> Option<ResetCause> {
+        ResetCause::from_code(self.reset_cause)
+    }
+
+    /// Sets the panic message, cut to [`MAX_PANIC_MESSAGE`] bytes at a character boundary.
+    pub fn set_panic_message(&mut self, message: &str) {
+        let mut end = message.len().min(MAX_PANIC_MESSAGE);
+        while !message.is_char_boundary(end) {
+            end -= 1;
+        }
+        self.panic_message.clear();
+        // Cannot fail: at most MAX_PANIC_MESSAGE bytes.
+        let _ = self.panic_message.push_str(&message[..end]);
     }
 
     /// Microphone `i` position in metres, or `None` past the last microphone.
@@ -335,7 +627,7 @@ pub struct Peaks {
 
 /// The fields of [`Peaks`] before the appended ones: what older frames carry.
 #[derive(Deserialize)]
-pub(crate) struct PeaksBase {
+struct PeaksBase {
     pub span_samples: u32,
     pub bpf_chz: u32,
     pub peaks: heapless::Vec<Peak, MAX_PEAKS>,
@@ -343,12 +635,27 @@ pub(crate) struct PeaksBase {
 
 /// The appended fields of [`Peaks`].
 #[derive(Deserialize)]
-pub(crate) struct PeaksAppended {
+struct PeaksAppended {
     pub detection: Detection,
     pub quality: heapless::Vec<u8, MAX_PEAKS>,
 }
 
 impl Peaks {
+    /// Decodes a payload; the appended detection and qualities default when absent (older
+    /// firmware: [`Detection::Unstated`], no qualities).
+    pub(crate) fn from_payload(payload: &[u8]) -> postcard::Result<Peaks> {
+        let (base, appended, _) = base_and_appended::<PeaksBase, PeaksAppended>(payload)?;
+        let (detection, quality) =
+            appended.map_or_else(Default::default, |a| (a.detection, a.quality));
+        Ok(Peaks {
+            span_samples: base.span_samples,
+            bpf_chz: base.bpf_chz,
+            peaks: base.peaks,
+            detection,
+            quality,
+        })
+    }
+
     /// A frame of the current layout with no groups: "no rotor signature".
     pub fn no_rotor(span_samples: u32) -> Self {
         Peaks {
@@ -383,7 +690,10 @@ impl Peaks {
 /// Processing load and loss counters (aim-dsp default: every 48 blocks, about 1/s). Counters
 /// count from start-up and wrap; a host differences consecutive frames. The first four fields
 /// come from the DSP, the rest from the firmware (0 in simulation).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+///
+/// The fields after `queue_depth` were appended later (compatibility rule 3): a payload
+/// without them decodes with them at 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 pub struct Health {
     /// Blocks processed since start-up.
     pub blocks: u32,
@@ -395,10 +705,137 @@ pub struct Health {
     pub block_exponent: i8,
     /// CPU cycles spent on the last block (0 when not measured).
     pub cycles_per_block: u32,
-    /// Audio DMA overruns since start-up (blocks lost before processing).
+    /// Audio DMA ring overruns since start-up: the ring wrapped before the capture task read
+    /// it (each one restarted capture; the lost samples are a gap).
     pub dma_overruns: u32,
     /// Frames dropped since start-up because the uplink queue was full.
     pub dropped_frames: u32,
     /// Frames waiting in the uplink queue when this one was queued.
     pub queue_depth: u8,
+    /// Capture chunks discarded because the DSP had not freed a queue slot in time (DSP
+    /// overload; each is a gap of one chunk).
+    pub dsp_overloads: u32,
+    /// Overruns of the SAI's own FIFO (its overrun flag; each one restarted capture).
+    pub sai_overruns: u32,
+    /// Gaps in the sample clock handed to the DSP (whatever their cause).
+    pub gaps: u32,
+    /// Audio frames (samples per microphone) lost in those gaps.
+    pub frames_lost: u32,
+    /// DSP outputs dropped because their span crossed a gap.
+    pub outputs_dropped: u32,
+    /// DSP outputs dropped because one chunk produced more than the firmware buffers.
+    pub outputs_overflowed: u32,
+    /// Uplink UART transmit errors.
+    pub uart_errors: u32,
+    /// Frames that could not be encoded (too large for the buffer, payload error).
+    pub frames_unencodable: u32,
+    /// Capture chunks handed to the DSP.
+    pub chunks_captured: u32,
+    /// Per-microphone levels (appended after `chunks_captured`, rule 3; sent only when
+    /// `mic_levels.count > 0`, so a `Health` without them keeps its bytes).
+    #[serde(skip)]
+    pub mic_levels: MicLevels,
+}
+
+/// Each microphone's level in the first block of a [`Health`] interval, from the DSP front end:
+/// what tells a dead or stuck microphone from a working one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MicLevels {
+    /// Microphones reported (0: none; at most [`MAX_MICS`]).
+    pub count: u8,
+    /// RMS of each microphone's DC-removed signal, units of 0.1 dBFS (−2000: all zero).
+    pub rms_ddbfs: [i16; MAX_MICS],
+    /// Each microphone's DC level, units of 0.1 dBFS (−2000: zero).
+    pub dc_ddbfs: [i16; MAX_MICS],
+}
+
+impl MicLevels {
+    /// `(rms, dc)` of microphone `mic` in dBFS, or `None` past `count`.
+    pub fn level_dbfs(&self, mic: usize) -> Option<(f32, f32)> {
+        (mic < usize::from(self.count).min(MAX_MICS))
+            .then(|| (f32::from(self.rms_ddbfs[mic]) * 0.1, f32::from(self.dc_ddbfs[mic]) * 0.1))
+    }
+}
+
+/// The per-microphone levels appended to [`Health`] (sent only when there are any).
+#[derive(Serialize, Deserialize)]
+pub(crate) struct HealthMics {
+    /// `[rms, dc]` per microphone, units of 0.1 dBFS.
+    pub(crate) levels: heapless::Vec<[i16; 2], MAX_MICS>,
+}
+
+/// The part of a [`Health`] payload every version has.
+#[derive(Deserialize)]
+struct HealthBase {
+    blocks: u32,
+    clipped_samples: u32,
+    peak_ddbfs: i16,
+    block_exponent: i8,
+    cycles_per_block: u32,
+    dma_overruns: u32,
+    dropped_frames: u32,
+    queue_depth: u8,
+}
+
+/// The loss counters appended to [`Health`].
+#[derive(Deserialize)]
+struct HealthLosses {
+    dsp_overloads: u32,
+    sai_overruns: u32,
+    gaps: u32,
+    frames_lost: u32,
+    outputs_dropped: u32,
+    outputs_overflowed: u32,
+    uart_errors: u32,
+    frames_unencodable: u32,
+    chunks_captured: u32,
+}
+
+impl Health {
+    /// Decodes a payload; the appended counters are 0 when absent (older firmware).
+    pub(crate) fn from_payload(payload: &[u8]) -> postcard::Result<Health> {
+        let (b, losses, rest) = base_and_appended::<HealthBase, HealthLosses>(payload)?;
+        let mut health = Health {
+            blocks: b.blocks,
+            clipped_samples: b.clipped_samples,
+            peak_ddbfs: b.peak_ddbfs,
+            block_exponent: b.block_exponent,
+            cycles_per_block: b.cycles_per_block,
+            dma_overruns: b.dma_overruns,
+            dropped_frames: b.dropped_frames,
+            queue_depth: b.queue_depth,
+            ..Health::default()
+        };
+        if let Some(l) = losses {
+            health.dsp_overloads = l.dsp_overloads;
+            health.sai_overruns = l.sai_overruns;
+            health.gaps = l.gaps;
+            health.frames_lost = l.frames_lost;
+            health.outputs_dropped = l.outputs_dropped;
+            health.outputs_overflowed = l.outputs_overflowed;
+            health.uart_errors = l.uart_errors;
+            health.frames_unencodable = l.frames_unencodable;
+            health.chunks_captured = l.chunks_captured;
+        }
+        if !rest.is_empty() {
+            let (mics, _) = postcard::take_from_bytes::<HealthMics>(rest)?;
+            let levels = &mut health.mic_levels;
+            levels.count = mics.levels.len() as u8;
+            for (i, [rms, dc]) in mics.levels.iter().enumerate() {
+                levels.rms_ddbfs[i] = *rms;
+                levels.dc_ddbfs[i] = *dc;
+            }
+        }
+        Ok(health)
+    }
+
+    /// The per-microphone levels, when they are to be sent.
+    pub(crate) fn mic_report(&self) -> Option<HealthMics> {
+        let n = usize::from(self.mic_levels.count).min(MAX_MICS);
+        (n > 0).then(|| HealthMics {
+            levels: (0..n)
+                .map(|i| [self.mic_levels.rms_ddbfs[i], self.mic_levels.dc_ddbfs[i]])
+                .collect(),
+        })
+    }
 }

@@ -13,7 +13,9 @@
 //! assert!(n > 0);
 //! ```
 
-use crate::frame::{Body, Detection, Doa, Health, Hello, Peak, Peaks, MAX_PEAKS};
+use crate::frame::{
+    Body, Detection, Doa, Health, Hello, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS,
+};
 use crate::{fixed, EncodeError, Encoder};
 
 /// What the firmware knows and the DSP does not; goes into [`Health`] frames. All zero in
@@ -28,6 +30,24 @@ pub struct FirmwareCounters {
     pub dropped_frames: u32,
     /// Frames waiting in the uplink queue.
     pub queue_depth: u8,
+    /// Capture chunks discarded because the DSP queue was full.
+    pub dsp_overloads: u32,
+    /// SAI FIFO overruns (the SAI's overrun flag).
+    pub sai_overruns: u32,
+    /// Gaps in the sample clock handed to the DSP.
+    pub gaps: u32,
+    /// Audio frames lost in those gaps.
+    pub frames_lost: u32,
+    /// DSP outputs dropped because their span crossed a gap.
+    pub outputs_dropped: u32,
+    /// DSP outputs beyond what the firmware buffers per chunk.
+    pub outputs_overflowed: u32,
+    /// Uplink UART transmit errors.
+    pub uart_errors: u32,
+    /// Frames that could not be encoded.
+    pub frames_unencodable: u32,
+    /// Capture chunks handed to the DSP.
+    pub chunks_captured: u32,
 }
 
 /// The `Hello` of an array running `config`.
@@ -89,7 +109,27 @@ pub fn health(h: &aim_dsp::Health, firmware: &FirmwareCounters) -> Health {
         dma_overruns: firmware.dma_overruns,
         dropped_frames: firmware.dropped_frames,
         queue_depth: firmware.queue_depth,
+        dsp_overloads: firmware.dsp_overloads,
+        sai_overruns: firmware.sai_overruns,
+        gaps: firmware.gaps,
+        frames_lost: firmware.frames_lost,
+        outputs_dropped: firmware.outputs_dropped,
+        outputs_overflowed: firmware.outputs_overflowed,
+        uart_errors: firmware.uart_errors,
+        frames_unencodable: firmware.frames_unencodable,
+        chunks_captured: firmware.chunks_captured,
+        mic_levels: mic_levels(h),
     }
+}
+
+/// The DSP's per-microphone levels at the wire's 0.1 dB.
+fn mic_levels(h: &aim_dsp::Health) -> MicLevels {
+    let mut levels = MicLevels { count: h.mics.min(MAX_MICS as u8), ..MicLevels::default() };
+    for i in 0..usize::from(levels.count) {
+        levels.rms_ddbfs[i] = fixed::to_i16(h.mic_rms_dbfs[i], 10.0);
+        levels.dc_ddbfs[i] = fixed::to_i16(h.mic_dc_dbfs[i], 10.0);
+    }
+    levels
 }
 
 /// The frame body and sample index of one pipeline output.

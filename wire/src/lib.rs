@@ -41,6 +41,12 @@
 //! | `Hello::mic_positions_decimm` | i16 | 0.1 mm | ±3.2767 m |
 //! | `Health::peak_ddbfs` | i16 | 0.1 dB | ±3276.7 dBFS |
 //! | `span_samples`, `sample_rate_hz`, counters | u32 | 1 | exact |
+//! | `Hello::reset_cause` | u8 | [`ResetCause`] code | 0–9 known |
+//! | `Hello::unique_id` | 12 × u8 | chip unique ID bytes | all zero: not reported |
+//! | `Hello::panic_message` | UTF-8 string | ≤ [`MAX_PANIC_MESSAGE`] bytes | empty: none |
+//! | `Hello::chip_revision` | u16 | silicon revision (STM32 REV_ID) | 0: not reported |
+//! | `Hello::clock_source` | u8 | [`ClockSource`] code | 0–2 known |
+//! | `Hello::sysclk_hz` | u32 | core clock, Hz | 0: not reported |
 //! | header `sample_index` | u64 | 1 sample | exact (LEB128 at 48 kHz: 3 bytes to 43 s, 4 to 93 min, 5 to 8 days) |
 //!
 //! Quantisation rounds half away from zero and saturates ([`Doa::new`], [`Peak::new`], …).
@@ -99,8 +105,9 @@ pub use crc32::crc32;
 pub use deframe::{decode, DecodeError, Deframer, Feed, LinkStats, DEFAULT_CAPACITY};
 pub use encode::{encode, EncodeError, Encoder};
 pub use frame::{
-    reserved, Body, Detection, Doa, Frame, Header, Health, Hello, Kind, Peak, Peaks, MAX_MICS,
-    MAX_PEAKS,
+    derived_array_id, reserved, stm32h7_revision_name, Body, ClockSource, Detection, Doa, Frame,
+    Header, Health, Hello, Kind, MicLevels, Peak, Peaks, ResetCause, MAX_MICS, MAX_PANIC_MESSAGE,
+    MAX_PEAKS, UNIQUE_ID_LEN,
 };
 
 /// First byte of every raw frame.

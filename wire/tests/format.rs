@@ -3,8 +3,8 @@
 mod common;
 
 use aim_wire::{
-    decode, reserved, Body, DecodeError, Deframer, Frame, Kind, LinkStats, MAX_ENCODED_LEN,
-    MAX_RAW_LEN, PROTOCOL_VERSION,
+    decode, reserved, stm32h7_revision_name, Body, ClockSource, DecodeError, Deframer, Frame, Kind,
+    LinkStats, ResetCause, MAX_ENCODED_LEN, MAX_RAW_LEN, PROTOCOL_VERSION,
 };
 use common::{raw, reframe, sample_frames, strip_crc, wire, worst_case};
 use proptest::prelude::*;
@@ -38,8 +38,12 @@ fn discriminants_are_pinned() {
 fn max_encoded_size_per_kind() {
     // Declared worst cases (computed by hand in `Kind::max_payload_len`) against real encodings
     // of frames with every varint at its widest.
-    let expected =
-        [(Kind::Hello, 80, 83), (Kind::Doa, 36, 39), (Kind::Peaks, 73, 76), (Kind::Health, 50, 53)];
+    let expected = [
+        (Kind::Hello, 156, 159),
+        (Kind::Doa, 36, 39),
+        (Kind::Peaks, 73, 76),
+        (Kind::Health, 144, 147),
+    ];
     for (kind, raw_len, wire_len) in expected {
         let frame = worst_case(kind);
         assert_eq!(raw(&frame).len(), raw_len, "{kind:?} raw");
@@ -47,8 +51,8 @@ fn max_encoded_size_per_kind() {
         assert_eq!(kind.max_raw_len(), raw_len, "{kind:?} declared raw");
         assert_eq!(kind.max_encoded_len(), wire_len, "{kind:?} declared wire");
     }
-    assert_eq!(MAX_RAW_LEN, 80);
-    assert_eq!(MAX_ENCODED_LEN, 83);
+    assert_eq!(MAX_RAW_LEN, 156);
+    assert_eq!(MAX_ENCODED_LEN, 159);
 }
 
 const GOLDEN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden");
@@ -90,6 +94,132 @@ fn golden_bytes_of_every_kind() {
     for kind in Kind::ALL {
         assert!(seen.contains(&kind), "no golden snapshot of {kind:?}");
     }
+}
+
+#[test]
+fn hello_and_health_of_older_firmware_decode_with_the_appended_fields_at_their_defaults() {
+    // Rule 3, the other way: `*-base.hex` are the snapshots of the frames before the start-up
+    // fields (Hello) and the loss counters (Health) were appended, bytes as older firmware
+    // sends them.
+    let frames = sample_frames();
+    for (name, index) in [("hello", 0), ("health", 3)] {
+        let path = format!("{GOLDEN_DIR}/{name}-sample-base.hex");
+        let golden = std::fs::read_to_string(&path).unwrap();
+        let mut deframer: Deframer = Deframer::new();
+        let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+        let mut expected = frames[index].clone();
+        match &mut expected.body {
+            Body::Hello(h) => {
+                let positions = h.mic_positions_decimm.clone();
+                *h = aim_wire::Hello {
+                    firmware_version: h.firmware_version,
+                    sample_rate_hz: h.sample_rate_hz,
+                    block_len: h.block_len,
+                    mic_positions_decimm: positions,
+                    ..Default::default()
+                };
+                assert_eq!(h.reset_cause(), Some(ResetCause::Unknown));
+            }
+            Body::Health(h) => {
+                *h = aim_wire::Health {
+                    blocks: h.blocks,
+                    clipped_samples: h.clipped_samples,
+                    peak_ddbfs: h.peak_ddbfs,
+                    block_exponent: h.block_exponent,
+                    cycles_per_block: h.cycles_per_block,
+                    dma_overruns: h.dma_overruns,
+                    dropped_frames: h.dropped_frames,
+                    queue_depth: h.queue_depth,
+                    ..Default::default()
+                };
+            }
+            _ => unreachable!(),
+        }
+        assert_eq!(decoded, [Ok(expected)], "{path}");
+    }
+    // A payload cut inside the appended fields is malformed, not silently defaulted.
+    let body = strip_crc(&raw(&frames[0])).to_vec();
+    let (out, _) = deframe_all(&reframe(&body[..body.len() - 10]));
+    assert_eq!(out, [Err(DecodeError::Payload(Some(Kind::Hello)))]);
+}
+
+#[test]
+fn the_chip_and_clock_report_is_appended_only_when_set_and_decodes_back() {
+    // A Hello without the report (simulation, firmware before it) keeps its bytes: the golden
+    // `hello-sample.hex` above is such a frame. With the report, three fields follow the panic
+    // message: chip revision 0x2003 (LEB128 83 40), clock source 1, sysclk 480 000 000
+    // (LEB128 80 f0 f0 e4 01).
+    let frames = sample_frames();
+    let plain = strip_crc(&raw(&frames[0])).to_vec();
+    let mut with_report = frames[0].clone();
+    let Body::Hello(h) = &mut with_report.body else { unreachable!() };
+    h.chip_revision = 0x2003;
+    h.clock_source = ClockSource::HseBypass.code();
+    h.sysclk_hz = 480_000_000;
+    assert_eq!(h.clock_source(), Some(ClockSource::HseBypass));
+    let body = strip_crc(&raw(&with_report)).to_vec();
+    assert_eq!(&body[..plain.len()], &plain[..]);
+    assert_eq!(&body[plain.len()..], &[0x83, 0x40, 0x01, 0x80, 0xf0, 0xf0, 0xe4, 0x01]);
+    let (out, _) = deframe_all(&reframe(&body));
+    assert_eq!(out, [Ok(with_report)]);
+    // Cut inside the report: malformed, not silently defaulted.
+    let (out, _) = deframe_all(&reframe(&body[..body.len() - 2]));
+    assert_eq!(out, [Err(DecodeError::Payload(Some(Kind::Hello)))]);
+    // Codes and names are pinned; the revision letters are ES0392's.
+    let sources: Vec<_> = [0u8, 1, 2, 3]
+        .iter()
+        .map(|&c| ClockSource::from_code(c).map(|s| (s.code(), s.name())))
+        .collect();
+    assert_eq!(sources, [Some((0, "unknown")), Some((1, "hse-bypass")), Some((2, "hsi")), None]);
+    assert_eq!(stm32h7_revision_name(0x2003), Some("V"));
+    assert_eq!(stm32h7_revision_name(0x1003), Some("Y"));
+    assert_eq!(stm32h7_revision_name(0x0000), None);
+}
+
+#[test]
+fn reset_causes_are_pinned_and_the_panic_message_is_cut_at_a_character() {
+    let codes: Vec<(u8, &str)> = ResetCause::ALL.iter().map(|c| (c.code(), c.name())).collect();
+    assert_eq!(
+        codes,
+        [
+            (0, "unknown"),
+            (1, "power-on"),
+            (2, "pin"),
+            (3, "brown-out"),
+            (4, "software"),
+            (5, "watchdog"),
+            (6, "window-watchdog"),
+            (7, "low-power"),
+            (8, "panic"),
+            (9, "fault"),
+        ]
+    );
+    assert_eq!(ResetCause::from_code(10), None);
+    let mut hello = aim_wire::Hello::default();
+    // 47 ASCII bytes and a 2-byte character: the character does not fit and is left out.
+    let message = format!("{}é", "x".repeat(47));
+    hello.set_panic_message(&message);
+    assert_eq!(hello.panic_message.as_str(), &message[..47]);
+    hello.set_panic_message("short");
+    assert_eq!(hello.panic_message.as_str(), "short");
+}
+
+#[test]
+fn derived_array_ids_are_in_range_and_follow_the_crc() {
+    // Oracle: the published CRC-32/ISO-HDLC of these 12 bytes, computed independently with
+    // Python's zlib.crc32(b"123456789abc") = 0xBDB0C0E4 (3182477540): 3182477540 mod 255 = 20.
+    let uid = *b"123456789abc";
+    assert_eq!(aim_wire::crc32(&uid), 0xBDB0_C0E4);
+    assert_eq!(aim_wire::derived_array_id(&uid), 21);
+    // Every id in 1..=255 is reachable and 0 never comes out, over many unique IDs.
+    let mut seen = [false; 256];
+    let mut rng = common::Rng::new(1);
+    for _ in 0..20_000 {
+        let uid: [u8; 12] = core::array::from_fn(|_| rng.byte());
+        seen[usize::from(aim_wire::derived_array_id(&uid))] = true;
+    }
+    assert!(!seen[0]);
+    assert!(seen[1..].iter().all(|&s| s));
 }
 
 #[test]
@@ -158,8 +288,18 @@ fn unknown_version_is_skipped_and_counted() {
 
 #[test]
 fn appended_payload_fields_are_ignored() {
-    // Rule 3: a later firmware appends fields; this version reads the prefix it knows.
-    for frame in sample_frames() {
+    // Rule 3: a later firmware appends fields; this version reads the prefix it knows. (A
+    // Hello's later fields follow the chip and clock report, and a Health's the microphone
+    // levels, which are then always sent.)
+    for mut frame in sample_frames() {
+        if let Body::Hello(h) = &mut frame.body {
+            (h.chip_revision, h.clock_source, h.sysclk_hz) = (0x2003, 1, 480_000_000);
+        }
+        if let Body::Health(h) = &mut frame.body {
+            h.mic_levels.count = 2;
+            h.mic_levels.rms_ddbfs[..2].copy_from_slice(&[-412, -2000]);
+            h.mic_levels.dc_ddbfs[..2].copy_from_slice(&[-655, -2000]);
+        }
         let mut longer = strip_crc(&raw(&frame)).to_vec();
         longer.extend_from_slice(&[0x05, 0x7F, 0x00, 0x01]);
         let (out, _) = deframe_all(&reframe(&longer));
@@ -339,6 +479,14 @@ fn peaks_of_older_firmware_decode_with_unstated_detection() {
     assert_eq!((q.detection, q.quality.len()), (aim_wire::Detection::Unstated, 0));
     assert_eq!((q.bpf_chz, &q.peaks), (p.bpf_chz, &p.peaks));
     assert!(q.is_rotor() && p.is_rotor() && stats.malformed == 0);
+    // The snapshot of that frame's bytes as older firmware sent them decodes the same way.
+    let golden = std::fs::read_to_string(format!("{GOLDEN_DIR}/peaks-sample-base.hex")).unwrap();
+    let mut deframer: Deframer = Deframer::new();
+    let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+    assert!(
+        matches!(&decoded[..], [Ok(Frame { body: Body::Peaks(g), .. })] if g == q),
+        "{decoded:?}"
+    );
     // And "no rotor signature" is no rotor, whatever else.
     assert!(!aim_wire::Peaks::no_rotor(24_576).is_rotor());
 }

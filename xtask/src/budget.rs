@@ -46,6 +46,10 @@ pub struct SizeBudget {
     pub name: String,
     /// What is measured.
     pub measure: SizeMeasure,
+    /// Cargo features of the measured build; empty (the default): the firmware's default
+    /// build. Non-empty: `--no-default-features --features <these>` (e.g. the PDM build).
+    #[serde(default)]
+    pub features: Vec<String>,
     /// Largest allowed value, in `unit`.
     pub limit: u64,
     /// Unit of `limit` and of the measurement (bytes).
@@ -110,12 +114,16 @@ impl fmt::Display for Line {
     }
 }
 
-/// Builds the firmware in release for its target and returns the path of its ELF.
-pub fn build_firmware(root: &Path, firmware: &Firmware) -> Result<PathBuf> {
-    crate::cargo(
-        root,
-        &["build", "--release", "-p", &firmware.package, "--target", &firmware.target],
-    )?;
+/// Builds the firmware in release for its target (with `features`, see
+/// [`SizeBudget::features`]) and returns the path of its ELF.
+pub fn build_firmware(root: &Path, firmware: &Firmware, features: &[String]) -> Result<PathBuf> {
+    let mut args =
+        vec!["build", "--release", "-p", &firmware.package, "--target", &firmware.target];
+    let list = features.join(",");
+    if !features.is_empty() {
+        args.extend(["--no-default-features", "--features", &list]);
+    }
+    crate::cargo(root, &args)?;
     let elf = target_dir(root)?.join(&firmware.target).join("release").join(&firmware.package);
     if !elf.is_file() {
         bail!("the build succeeded but {} is not there", elf.display());
@@ -144,22 +152,42 @@ pub(crate) fn target_dir(root: &Path) -> Result<PathBuf> {
 /// Measures every budget, prints one line each, and fails if any is over.
 pub fn run(root: &Path) -> Result<()> {
     let budget = Budget::load(root)?;
-    let elf = build_firmware(root, &budget.firmware)?;
-    eprintln!("firmware ELF ({}): {}", budget.firmware.target, elf.display());
-    let data = std::fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
-    let size = elf_size::measure(&data, &budget.regions)
-        .with_context(|| format!("measuring {}", elf.display()))?;
+    // One build per feature set; the default build last, so that the firmware ELF left in
+    // `release/` afterwards is the default one.
+    let mut builds: Vec<&[String]> = Vec::new();
+    for b in &budget.size {
+        if !builds.contains(&b.features.as_slice()) {
+            builds.push(&b.features);
+        }
+    }
+    builds.sort_by_key(|features| features.is_empty());
+    let mut sizes = Vec::new();
+    for features in builds {
+        let elf = build_firmware(root, &budget.firmware, features)?;
+        eprintln!(
+            "firmware ELF ({}, features {features:?}): {}",
+            budget.firmware.target,
+            elf.display()
+        );
+        let data = std::fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?;
+        let size = elf_size::measure(&data, &budget.regions)
+            .with_context(|| format!("measuring {}", elf.display()))?;
+        sizes.push((features, size));
+    }
     let mut lines: Vec<Line> = budget
         .size
         .iter()
-        .map(|b| Line {
-            name: b.name.clone(),
-            measured: match b.measure {
-                SizeMeasure::Flash => size.flash,
-                SizeMeasure::Ram => size.ram,
-            },
-            limit: b.limit,
-            unit: b.unit.clone(),
+        .map(|b| {
+            let size = &sizes.iter().find(|(f, _)| *f == b.features.as_slice()).expect("built").1;
+            Line {
+                name: b.name.clone(),
+                measured: match b.measure {
+                    SizeMeasure::Flash => size.flash,
+                    SizeMeasure::Ram => size.ram,
+                },
+                limit: b.limit,
+                unit: b.unit.clone(),
+            }
         })
         .collect();
     if !budget.instructions.is_empty() || !budget.target_ram.is_empty() {
@@ -192,6 +220,8 @@ mod tests {
         let budget = Budget::load(&root).unwrap();
         assert_eq!(budget.firmware.target, "thumbv7em-none-eabihf");
         assert!(budget.size.iter().any(|b| matches!(b.measure, SizeMeasure::Flash)));
+        // The PDM build has its own size lines.
+        assert!(budget.size.iter().any(|b| b.features == ["pdm", "mics-4"]));
     }
 
     #[test]

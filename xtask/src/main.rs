@@ -5,6 +5,8 @@
 //!   `budget: <name> <measured> <limit> <unit> ok|OVER`. Exits non-zero on any OVER.
 //! - `cargo xtask qemu`: on QEMU's Cortex-M4F model (`tests/qemu`), checks that the DSP's
 //!   output equals the host's bit for bit and prints the instructions of every DSP stage.
+//! - `cargo xtask boot`: builds the board images (firmware and HIL binaries), checks that each can
+//!   start (ELF layout, emulated start from reset to `main` on the STM32H743 memory map).
 //! - `cargo xtask ci`: everything `.ci/run` checks once the tools are installed.
 use std::{
     path::{Path, PathBuf},
@@ -13,14 +15,17 @@ use std::{
 
 use anyhow::{bail, Context, Result};
 
+mod boot;
 mod budget;
 mod elf_size;
+mod image_layout;
 mod instructions;
 mod qemu;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
+        Some("boot") => boot::run(&workspace_root(), &args[1..]),
         Some("budget") => budget::run(&workspace_root()),
         Some("ci") => ci(&workspace_root()),
         Some("qemu") => qemu::run_all(&workspace_root()),
@@ -43,6 +48,8 @@ const USAGE: &str = "\
 usage: cargo xtask <command>
 
 commands:
+  boot     build the board images; check their layout and emulate their start to main
+           (`boot ELF...`: check those images instead, without building)
   budget   build the firmware and check flash, RAM and instruction budgets (budget.toml)
   qemu     QEMU Cortex-M4F: host/target bit parity, instructions per DSP stage
   ci       run every check of .ci/run (tests, fmt, clippy, firmware build, budgets)
@@ -77,7 +84,12 @@ fn ci(root: &Path) -> Result<()> {
     // The board's crates: the firmware and its hardware-in-the-loop test binaries.
     let board = ["-p", "aim-firmware", "-p", "aim-hil-tests", "--target", "thumbv7em-none-eabihf"];
     cargo(root, &[&["clippy", "--release"], &board[..], &["--", "-D", "warnings"]].concat())?;
-    cargo(root, &[&["build", "--release"], &board[..]].concat())?;
+    // Every board image can start: its layout, then an emulated start to main.
+    boot::run(root, &[])?;
+    // The PDM build of both (4 PDM microphones on SAI1's PDM interface, see
+    // firmware/README.md); `boot` above built and started its images.
+    let pdm_board = [&board[..], &boot::PDM_FEATURES[..]].concat();
+    cargo(root, &[&["clippy", "--release"], &pdm_board[..], &["--", "-D", "warnings"]].concat())?;
     // Host output equals the Cortex-M4F model's bit for bit (the counts come with `budget`).
     qemu::check_sources(root)?;
     qemu::parity(&qemu::build(root)?)?;

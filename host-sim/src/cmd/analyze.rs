@@ -104,8 +104,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let wav = args.wav.display();
     if matches!(spec.sample_format, hound::SampleFormat::Float) {
-        for s in reader.samples::<f32>() {
-            feed.word(converter.float(s.with_context(|| format!("{wav}: bad sample"))?), &mut out)?;
+        for (k, s) in reader.samples::<f32>().enumerate() {
+            let x = s.with_context(|| format!("{wav}: bad sample"))?;
+            if !x.is_finite() {
+                // Not silence: a recording with NaN or infinite pressure is broken.
+                bail!(
+                    "{wav}: sample {} of channel {} ({:.6} s) is {x}, not a pressure",
+                    k / channels,
+                    k % channels,
+                    (k / channels) as f64 / fs
+                );
+            }
+            feed.word(converter.float(x), &mut out)?;
         }
     } else {
         for s in reader.samples::<i32>() {

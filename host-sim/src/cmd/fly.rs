@@ -1,21 +1,26 @@
 //! `host-sim fly SCENARIO.toml [--filter paper|aim|both] [--out DIR]`: simulate, run every
-//! array's recording through the on-chip pipeline and the wire format (the bytes a board would
-//! send, decoded again), track, and compare with the truth.
+//! array's recording (block by block as it is rendered, never held whole; memory refused up
+//! front past `--max-memory-mb` as `host-sim simulate` does) through the on-chip pipeline and the wire format into the bytes a board
+//! would send, then track from those bytes exactly as `aim replay DIR/frames-<id>.aimraw --site
+//! DIR/site.toml` does (the same [`aim_tracker::session::Session`], the frames in link order,
+//! nothing but the bytes and the site file), and compare with the truth.
 //!
-//! Prints the error summary (mean, median, p90, availability, motion-class accuracy) and writes
+//! Prints the error summary (mean, median, p90, availability, motion-class accuracy, latency)
+//! and the intake's statistics line, and writes
 //! `DIR/track.csv` (`t,x,y,z,vx,vy,vz,sigma_x,sigma_y,sigma_z,motion,los,truth_x,truth_y,truth_z,error`),
-//! `DIR/track.png` (track against truth), `DIR/site.toml`, `DIR/frames-<id>.aimraw` (replayable
-//! with `aim replay`) and `DIR/truth.csv`. With `--filter both` the tracks go to
-//! `DIR/paper/` and `DIR/aim/` from one simulation.
+//! `DIR/fixes.jsonl` (what `aim replay` prints for the same frames), `DIR/track.png` (track
+//! against truth), `DIR/site.toml`, `DIR/frames-<id>.aimraw` and `DIR/truth.csv`. With
+//! `--filter both` the tracks go to `DIR/paper/` and `DIR/aim/` from one simulation.
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 
 use aim_tracker::filter::FilterKind;
-use aim_tracker::intake::FrameConverter;
-use aim_tracker::observation::Input;
+use aim_tracker::intake::IntakeConfig;
+use aim_tracker::link::FrameSource;
 use aim_tracker::profile::Profile;
+use aim_tracker::session::Session;
 use aim_tracker::tracker::{Fix, Tracker, TrackerConfig};
 use host_sim::eval::{link, metrics, plot};
 use host_sim::scenario::Scenario;
@@ -41,13 +46,19 @@ pub struct Args {
     /// Worker threads of the simulation (0: all cores).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Refuse scenarios whose simulation needs more memory than this, MB (1 MB = 10⁶ bytes).
+    #[arg(long, default_value_t = 4000)]
+    max_memory_mb: u64,
 }
 
 /// What one tracker run gave.
-struct TrackRun {
-    kind: FilterKind,
-    fixes: Vec<Fix>,
-    summary: metrics::Summary,
+pub(crate) struct TrackRun {
+    /// The filter.
+    pub kind: FilterKind,
+    /// Its errors against the truth.
+    pub summary: metrics::Summary,
+    /// Its fixes' latency.
+    pub latency: aim_tracker::session::FixStats,
 }
 
 /// Runs `host-sim fly`.
@@ -57,6 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         other => vec![other.parse().map_err(anyhow::Error::msg).context("--filter")?],
     };
     let scenario = Scenario::load(&args.scenario)?;
+    crate::cmd::simulate::check_memory(&scenario, args.max_memory_mb)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("fly-{}", scenario.name)));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let profile = match &args.profile {
@@ -64,58 +76,109 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => Profile::dji_mini_2(),
     };
 
+    // The audio goes through every array's pipeline as it is rendered (never held whole).
     let progress = host_sim::progress_bar("simulating");
-    let sim =
-        host_sim::simulate_with(&scenario, &host_sim::Options { threads: args.threads }, &progress)
-            .with_context(|| format!("simulating {}", args.scenario.display()))?;
+    let (sim, links) = link::simulate_links(
+        &scenario,
+        &host_sim::Options { threads: args.threads },
+        &progress,
+        host_sim::DEFAULT_FULL_SCALE_PA,
+    )
+    .with_context(|| format!("simulating {}", args.scenario.display()))?;
     progress.finish_and_clear();
+    let runs = track(&sim, &links, &out, &profile, &kinds, args.period)?;
+    for r in &runs {
+        if let Some(line) = no_fix_line(&scenario.name, r) {
+            println!("{line}");
+            continue;
+        }
+        let s = &r.summary;
+        println!(
+            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, live mean {:.2} m, availability {:.1} % ({}/{}, {:.1} % within {} m), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
+            scenario.name,
+            filter_name(r.kind),
+            s.mean_m,
+            s.median_m,
+            s.p90_m,
+            s.live_mean_m,
+            100.0 * s.availability,
+            s.fixes,
+            s.due,
+            100.0 * s.good_availability,
+            host_sim::eval::metrics::GOOD_FIX_M,
+            100.0 * s.motion_accuracy,
+            s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
+            r.latency.mean_latency_s,
+            r.latency.max_latency_s,
+        );
+    }
+    Ok(())
+}
 
+/// Everything `host-sim fly` does after simulating, shared with `host-sim bench`: writes the
+/// site and truth files and every array's frame bytes (`links`, in the simulation's array
+/// order, from [`link::simulate_links`]) into `out`, runs them through the tracker with each
+/// filter of `kinds` (fixes every `period` s) and compares with the truth.
+pub(crate) fn track(
+    sim: &host_sim::Simulation,
+    links: &[Vec<u8>],
+    out: &Path,
+    profile: &Profile,
+    kinds: &[FilterKind],
+    period: f64,
+) -> anyhow::Result<Vec<TrackRun>> {
     // The tracker reads the site file the simulator writes, as `aim replay` would.
     let site_text = sim.site.to_toml()?;
     let site_path = out.join("site.toml");
     std::fs::write(&site_path, &site_text)
         .with_context(|| format!("writing {}", site_path.display()))?;
     std::fs::write(out.join("truth.csv"), sim.truth.to_csv()).context("writing truth.csv")?;
+    std::fs::write(out.join("truth.toml"), sim.truth.to_toml()).context("writing truth.toml")?;
     let site = aim_tracker::site::Site::parse(&site_text, &site_path)?;
 
-    // Every array through the pipeline and the link.
-    let mut converter = FrameConverter::new(site.clone());
-    let mut inputs: Vec<Input> = Vec::new();
-    for rec in &sim.arrays {
-        eprintln!("array {}: on-chip pipeline …", rec.id);
-        let bytes = link::link_bytes(rec, host_sim::DEFAULT_FULL_SCALE_PA)?;
+    // Every array through the pipeline and the link, into the files a board's link would fill.
+    let mut raw_paths = Vec::new();
+    for (rec, bytes) in sim.arrays.iter().zip(links) {
         let raw_path = out.join(format!("frames-{}.aimraw", rec.id));
-        std::fs::write(&raw_path, &bytes)
+        std::fs::write(&raw_path, bytes)
             .with_context(|| format!("writing {}", raw_path.display()))?;
-        let (frames, errors) = link::decode_frames(&bytes);
-        anyhow::ensure!(errors == 0, "array {}: {errors} frames failed to decode", rec.id);
-        inputs.extend(frames.iter().filter_map(|f| converter.convert(f)));
+        raw_paths.push((u16::from(rec.id), raw_path));
     }
-    inputs.sort_by(|a, b| a.t().total_cmp(&b.t()));
-    let (Some(first), Some(last)) = (inputs.first().map(Input::t), inputs.last().map(Input::t))
-    else {
-        anyhow::bail!("the pipeline produced no observation");
-    };
 
     let mut runs = Vec::new();
-    for &kind in &kinds {
-        let config = TrackerConfig { output_period_s: args.period, ..TrackerConfig::default() };
-        let mut tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
-        let array_index = sim
-            .truth
-            .array_ids
+    for &kind in kinds {
+        let config = TrackerConfig { output_period_s: period, ..TrackerConfig::default() };
+        let tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
+        let tracked = tracker.array_id();
+        let array_index =
+            sim.truth.array_ids.iter().position(|&id| u16::from(id) == tracked).unwrap_or(0);
+        // `aim replay frames-<id>.aimraw --site site.toml`: the bytes, in link order.
+        let (_, raw_path) = raw_paths
             .iter()
-            .position(|&id| u16::from(id) == tracker.array_id())
-            .unwrap_or(0);
+            .find(|(id, _)| *id == tracked)
+            .with_context(|| format!("no recording of array {tracked}"))?;
+        let name = raw_path.display().to_string();
+        let mut source = FrameSource::new(aim_tracker::link::open_input(&name)?);
+        let mut session = Session::new(tracker, site.clone(), IntakeConfig::default());
         let mut fixes = Vec::new();
-        for input in inputs.iter().cloned() {
-            fixes.extend(tracker.push(input));
-        }
-        fixes.extend(tracker.flush());
-        let summary = metrics::evaluate(&fixes, &sim.truth, args.period, first, last, array_index);
-        let dir = if kinds.len() > 1 { out.join(filter_name(kind)) } else { out.clone() };
+        session
+            .track_reader(&mut source, &mut |f| {
+                fixes.push(f.clone());
+                Ok(())
+            })
+            .with_context(|| format!("tracking {name}"))?;
+        eprintln!("{}: {}", filter_name(kind), session.stats_json(source.stats()));
+        let Some((first, last)) = session.inputs_span() else {
+            anyhow::bail!("the pipeline produced no observation");
+        };
+        let summary = metrics::evaluate(&fixes, &sim.truth, period, first, last, array_index);
+        let latency = session.fix_stats();
+        let dir = if kinds.len() > 1 { out.join(filter_name(kind)) } else { out.to_path_buf() };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         write_track(&dir.join("track.csv"), &fixes, &sim.truth)?;
+        let jsonl: String = fixes.iter().map(|f| f.to_json() + "\n").collect();
+        std::fs::write(dir.join("fixes.jsonl"), jsonl).context("writing fixes.jsonl")?;
+        let tracker = session.tracker();
         plot::plot_track(&dir.join("track.png"), &fixes, &sim.truth, &sim.site)?;
         eprintln!(
             "{}: k_v calibrated to {:.4e} N/Hz² (profile {:.4e})",
@@ -123,29 +186,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             tracker.k_v(),
             profile.k_v
         );
-        runs.push(TrackRun { kind, fixes, summary });
+        runs.push(TrackRun { kind, summary, latency });
     }
-    for r in &runs {
-        let s = &r.summary;
-        println!(
-            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, availability {:.1} % ({}/{}), motion class {:.1} %{}",
-            scenario.name,
-            filter_name(r.kind),
-            s.mean_m,
-            s.median_m,
-            s.p90_m,
-            100.0 * s.availability,
-            s.fixes,
-            s.due,
-            100.0 * s.motion_accuracy,
-            s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
-        );
-        let _ = r.fixes.len();
-    }
-    Ok(())
+    Ok(runs)
 }
 
-fn filter_name(kind: FilterKind) -> &'static str {
+/// What `fly` prints for a run without any fix to compare with the truth: there is no error
+/// to state (issue 17: it printed "mean -0.00 m, median NaN m"), so it says so. None when
+/// there were fixes.
+pub(crate) fn no_fix_line(name: &str, r: &TrackRun) -> Option<String> {
+    (r.summary.fixes == 0).then(|| {
+        format!(
+            "{name} {}: no fix to compare with the truth (0 of {} due)",
+            filter_name(r.kind),
+            r.summary.due
+        )
+    })
+}
+
+/// The filter's name on the command line and in output paths.
+pub(crate) fn filter_name(kind: FilterKind) -> &'static str {
     match kind {
         FilterKind::Paper => "paper",
         FilterKind::Aim => "aim",
@@ -188,4 +248,40 @@ fn write_track(path: &Path, fixes: &[Fix], truth: &host_sim::truth::Truth) -> an
         );
     }
     std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_without_fixes_says_so_instead_of_nan() {
+        let row = |k: usize| host_sim::truth::TruthRow {
+            t_s: k as f64 * 0.01,
+            position: [k as f64 * 0.01, 0.0, 2.0],
+            velocity: [1.0, 0.0, 0.0],
+            acceleration: [0.0; 3],
+            yaw_rad: 0.0,
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            rotor_hz: vec![164.0; 4],
+            los: vec![true],
+        };
+        let truth = host_sim::truth::Truth {
+            blades: 2,
+            array_ids: vec![1],
+            clocks: Vec::new(),
+            airframe: None,
+            rows: (0..=1200).map(row).collect(),
+        };
+        // The inputs spanned 0–12 s but the tracker gave no fix: the median is undefined.
+        let summary = metrics::evaluate(&[], &truth, 0.1, 0.0, 12.0, 0);
+        assert!(summary.median_m.is_nan() && summary.due > 100);
+        let run = TrackRun { kind: FilterKind::Aim, summary, latency: Default::default() };
+        let line = no_fix_line("s", &run).expect("no fixes");
+        assert_eq!(
+            line,
+            format!("s aim: no fix to compare with the truth (0 of {} due)", run.summary.due)
+        );
+    }
 }

@@ -17,41 +17,129 @@ pub const SIM_FIRMWARE_VERSION: [u8; 3] = [0, 1, 0];
 /// The byte stream the array would send over its link: a `Hello`, then one frame per
 /// pipeline output, in order. `full_scale_pa` maps to digital full scale.
 pub fn link_bytes(rec: &ArrayRecording, full_scale_pa: f64) -> anyhow::Result<Vec<u8>> {
-    let positions: Vec<[f32; 2]> =
-        rec.positions.iter().map(|p| [p[0] as f32, p[1] as f32]).collect();
-    let geometry = Geometry::from_positions(&positions)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))
-        .with_context(|| format!("array {}: geometry", rec.id))?;
-    let config = Config::new(geometry, rec.sample_rate_hz);
-    let mut pipeline = Pipeline::new(&config)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))
-        .with_context(|| format!("array {}: pipeline", rec.id))?;
-    let mut encoder = Encoder::new(rec.id);
-    let mut bytes = Vec::new();
-    let mut buf = [0u8; MAX_ENCODED_LEN];
-    let n = encoder
-        .encode(0, Body::Hello(from_dsp::hello(&config, SIM_FIRMWARE_VERSION)), &mut buf)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))
-        .context("encoding Hello")?;
-    bytes.extend_from_slice(&buf[..n]);
-    let words = rec.tdm_words(full_scale_pa, TDM_SLOTS);
-    let firmware = from_dsp::FirmwareCounters::default();
-    let mut error = None;
-    for chunk in words.chunks(CHUNK_FRAMES * TDM_SLOTS) {
-        pipeline.push(chunk, &mut |out| match from_dsp::encode_output(
-            &mut encoder,
-            &out,
-            &firmware,
-            &mut buf,
+    let mut link = LinkStream::new(rec, full_scale_pa)?;
+    let channels: Vec<&[f32]> = rec.channels.iter().map(Vec::as_slice).collect();
+    link.push(&channels)?;
+    link.finish()
+}
+
+/// [`link_bytes`] fed block by block: the recording's TDM words go to the pipeline in the same
+/// [`CHUNK_FRAMES`] pieces whatever the blocks, so the bytes are the same.
+pub struct LinkStream {
+    id: u8,
+    full_scale_pa: f64,
+    pipeline: Pipeline,
+    encoder: Encoder,
+    firmware: from_dsp::FirmwareCounters,
+    /// TDM words not handed to the pipeline yet (less than one chunk).
+    pending: Vec<i32>,
+    bytes: Vec<u8>,
+    error: Option<String>,
+}
+
+impl LinkStream {
+    /// A board with `rec`'s id, geometry and rate (its channels are not read) that has sent
+    /// its `Hello`.
+    pub fn new(rec: &ArrayRecording, full_scale_pa: f64) -> anyhow::Result<Self> {
+        let positions: Vec<[f32; 2]> =
+            rec.positions.iter().map(|p| [p[0] as f32, p[1] as f32]).collect();
+        let geometry = Geometry::from_positions(&positions)
+            .map_err(|e| anyhow::anyhow!("{e:?}"))
+            .with_context(|| format!("array {}: geometry", rec.id))?;
+        let config = Config::new(geometry, rec.sample_rate_hz);
+        let pipeline = Pipeline::new(&config)
+            .map_err(|e| anyhow::anyhow!("{e:?}"))
+            .with_context(|| format!("array {}: pipeline", rec.id))?;
+        let mut encoder = Encoder::new(rec.id);
+        let mut buf = [0u8; MAX_ENCODED_LEN];
+        let n = encoder
+            .encode(0, Body::Hello(from_dsp::hello(&config, SIM_FIRMWARE_VERSION)), &mut buf)
+            .map_err(|e| anyhow::anyhow!("{e:?}"))
+            .context("encoding Hello")?;
+        Ok(Self {
+            id: rec.id,
+            full_scale_pa,
+            pipeline,
+            encoder,
+            firmware: from_dsp::FirmwareCounters::default(),
+            pending: Vec::with_capacity(CHUNK_FRAMES * TDM_SLOTS),
+            bytes: buf[..n].to_vec(),
+            error: None,
+        })
+    }
+
+    /// The next samples of every microphone (Pa, all the same length).
+    pub fn push(&mut self, channels: &[&[f32]]) -> anyhow::Result<()> {
+        let len = channels.first().map_or(0, |c| c.len());
+        for k in 0..len {
+            let frame = self.pending.len();
+            self.pending.resize(frame + TDM_SLOTS, 0);
+            for (i, ch) in channels.iter().enumerate().take(TDM_SLOTS) {
+                self.pending[frame + i] = crate::tdm_word(ch[k], self.full_scale_pa);
+            }
+            if self.pending.len() == CHUNK_FRAMES * TDM_SLOTS {
+                self.flush();
+            }
+        }
+        match self.error.take() {
+            Some(e) => anyhow::bail!("array {}: encoding a frame: {e}", self.id),
+            None => Ok(()),
+        }
+    }
+
+    /// Hands the pending words to the pipeline.
+    fn flush(&mut self) {
+        let mut buf = [0u8; MAX_ENCODED_LEN];
+        let (encoder, firmware, bytes, error) =
+            (&mut self.encoder, &self.firmware, &mut self.bytes, &mut self.error);
+        self.pipeline.push(&self.pending, &mut |out| match from_dsp::encode_output(
+            encoder, &out, firmware, &mut buf,
         ) {
             Ok(n) => bytes.extend_from_slice(&buf[..n]),
-            Err(e) => error = Some(format!("{e:?}")),
+            Err(e) => *error = Some(format!("{e:?}")),
         });
+        self.pending.clear();
     }
-    if let Some(e) = error {
-        anyhow::bail!("array {}: encoding a frame: {e}", rec.id);
+
+    /// The last (partial) chunk through the pipeline; the bytes sent.
+    pub fn finish(mut self) -> anyhow::Result<Vec<u8>> {
+        if !self.pending.is_empty() {
+            self.flush();
+        }
+        match self.error {
+            Some(e) => anyhow::bail!("array {}: encoding a frame: {e}", self.id),
+            None => Ok(self.bytes),
+        }
     }
-    Ok(bytes)
+}
+
+/// Every array of a simulation through its link as the audio is rendered.
+struct LinkSink(Vec<LinkStream>);
+
+impl crate::AudioSink for LinkSink {
+    fn block(&mut self, array: usize, channels: &[&[f32]]) -> anyhow::Result<()> {
+        self.0[array].push(channels)
+    }
+}
+
+/// Simulates `scenario` straight into every array's link bytes (in scenario order; the
+/// simulation's `channels` are empty): what [`link_bytes`] gives for each recording of
+/// [`crate::simulate_with`], without holding the recordings.
+pub fn simulate_links(
+    scenario: &crate::scenario::Scenario,
+    options: &crate::Options,
+    progress: &indicatif::ProgressBar,
+    full_scale_pa: f64,
+) -> anyhow::Result<(crate::Simulation, Vec<Vec<u8>>)> {
+    let mut links = Vec::new();
+    for a in &scenario.arrays {
+        let rec = ArrayRecording::empty_for(scenario, a);
+        links.push(LinkStream::new(&rec, full_scale_pa)?);
+    }
+    let mut sink = LinkSink(links);
+    let sim = crate::simulate_to(scenario, options, progress, &mut sink)?;
+    let bytes = sink.0.into_iter().map(LinkStream::finish).collect::<anyhow::Result<_>>()?;
+    Ok((sim, bytes))
 }
 
 /// Decodes a byte stream into frames, as the host's intake does; returns the frames and the

@@ -12,6 +12,9 @@ pub const MOVING_MPS: f64 = 0.2;
 pub const YAWING_RAD_S: f64 = 0.2;
 /// Time the tracker may take after its first frame before fixes are due, s.
 pub const WARM_UP_S: f64 = 0.25;
+/// Error bound of a *good* fix, m: [`Summary::good_availability`] counts the due output
+/// instants whose fix is within it (the NLoS target is 2.0 m).
+pub const GOOD_FIX_M: f64 = 2.0;
 
 /// Truth position, velocity and yaw rate at time `t` (linear interpolation), or `None`
 /// outside the truth's time span.
@@ -47,6 +50,11 @@ pub struct Summary {
     pub p90_m: f64,
     /// Fraction of due output instants that have a fix.
     pub availability: f64,
+    /// Fraction of due output instants that have a fix within [`GOOD_FIX_M`] of the truth.
+    pub good_availability: f64,
+    /// Mean error against where the drone is when the fix becomes available (its `available`
+    /// time, the reorder and span latency included): what a live user sees, m.
+    pub live_mean_m: f64,
     /// Fixes compared with the truth.
     pub fixes: usize,
     /// Output instants due.
@@ -63,7 +71,9 @@ fn quantile(sorted: &[f64], p: f64) -> f64 {
 }
 
 /// Compares fixes with the truth. Output instants are due every `period_s` from `WARM_UP_S`
-/// after `first_input_t` to `last_input_t` (both s); `array_index` picks the LoS column.
+/// after `first_input_t` to `last_input_t` (both s, on the tracked array's clock, as the fixes'
+/// times are); `array_index` picks that array's clock (to find the truth at true time) and its
+/// LoS column.
 pub fn evaluate(
     fixes: &[Fix],
     truth: &Truth,
@@ -77,24 +87,31 @@ pub fn evaluate(
     let last_k = (last_input_t / period_s + 1e-9).floor() as i64;
     let due = (last_k - first_k + 1).max(0) as usize;
     let mut errors = Vec::new();
+    let mut live_errors = Vec::new();
     let mut class_right = 0;
     let mut los_right = 0;
     let mut los_known = 0;
     let mut counted = 0;
     for f in fixes.iter().filter(|f| f.t >= start - 1e-9 && f.t <= last_input_t + 1e-9) {
-        let Some((p, v, w)) = truth_at(truth, f.t) else { continue };
+        let t = truth.true_time(array_index, f.t);
+        let Some((p, v, w)) = truth_at(truth, t) else { continue };
         counted += 1;
-        errors.push(
-            ((f.position[0] - p[0]).powi(2)
-                + (f.position[1] - p[1]).powi(2)
-                + (f.position[2] - p[2]).powi(2))
-            .sqrt(),
-        );
+        let distance = |q: [f64; 3]| {
+            ((f.position[0] - q[0]).powi(2)
+                + (f.position[1] - q[1]).powi(2)
+                + (f.position[2] - q[2]).powi(2))
+            .sqrt()
+        };
+        errors.push(distance(p));
+        // Past the truth's end the drone has landed where the truth ends.
+        let live_t = truth.true_time(array_index, f.available);
+        let live = truth_at(truth, live_t)
+            .map_or_else(|| truth.rows.last().map_or(p, |r| r.position), |(q, _, _)| q);
+        live_errors.push(distance(live));
         if f.motion == MotionClass::of_kinematics(v, w, MOVING_MPS, YAWING_RAD_S) {
             class_right += 1;
         }
-        let i =
-            truth.rows.partition_point(|r| r.t_s <= f.t).min(truth.rows.len().saturating_sub(1));
+        let i = truth.rows.partition_point(|r| r.t_s <= t).min(truth.rows.len().saturating_sub(1));
         if let Some(&los) = truth.rows.get(i).and_then(|r| r.los.get(array_index)) {
             los_known += 1;
             if los == f.los {
@@ -102,6 +119,7 @@ pub fn evaluate(
             }
         }
     }
+    let good = errors.iter().filter(|&&e| e <= GOOD_FIX_M).count();
     errors.sort_by(f64::total_cmp);
     let n = errors.len().max(1) as f64;
     Summary {
@@ -109,6 +127,8 @@ pub fn evaluate(
         median_m: quantile(&errors, 0.5),
         p90_m: quantile(&errors, 0.9),
         availability: if due > 0 { counted.min(due) as f64 / due as f64 } else { 0.0 },
+        good_availability: if due > 0 { good.min(due) as f64 / due as f64 } else { 0.0 },
+        live_mean_m: live_errors.iter().sum::<f64>() / n,
         fixes: counted,
         due,
         motion_accuracy: class_right as f64 / n,
@@ -141,16 +161,21 @@ mod tests {
         let truth = Truth {
             blades: 2,
             array_ids: vec![1],
+            clocks: vec![],
+            airframe: None,
             rows: (0..=200).map(|k| row(k as f64 * 0.01, k as f64 * 0.01, 1.0)).collect(),
         };
-        // Fixes every 0.1 s from 0.3 s to 1.9 s, each 0.5 m off in y, one missing (1.0 s).
+        // Fixes every 0.1 s from 0.3 s to 1.9 s, each 0.5 m off in y, one missing (1.0 s),
+        // available 0.3 s after the instant they describe (the drone is 0.3 m further on by
+        // then), the last three 3 m off in y.
         let fixes: Vec<Fix> = (3..=19)
             .filter(|&k| k != 10)
             .map(|k| {
                 let t = k as f64 * 0.1;
                 Fix {
                     t,
-                    position: [t, 0.5, 2.0],
+                    available: t + 0.3,
+                    position: [t, if k >= 17 { 3.0 } else { 0.5 }, 2.0],
                     velocity: [1.0, 0.0, 0.0],
                     sigma: [0.1; 3],
                     motion: if k < 6 { MotionClass::Hover } else { MotionClass::Horizontal },
@@ -162,7 +187,19 @@ mod tests {
         assert_eq!(s.due, 17); // 0.3 … 1.9 s
         assert_eq!(s.fixes, 16);
         assert!((s.availability - 16.0 / 17.0).abs() < 1e-12);
-        assert!((s.mean_m - 0.5).abs() < 1e-9 && (s.p90_m - 0.5).abs() < 1e-9);
+        assert!((s.mean_m - (13.0 * 0.5 + 3.0 * 3.0) / 16.0).abs() < 1e-9);
+        assert!((s.median_m - 0.5).abs() < 1e-9);
+        // 13 of 17 due instants have a fix within 2 m.
+        assert!((s.good_availability - 13.0 / 17.0).abs() < 1e-12);
+        // Live: 0.3 m behind along x besides the y offset; the last fix's available time
+        // (2.2 s) is past the truth (2.0 s), where the drone stays at x = 2.0.
+        let live = |t: f64, y: f64| ((t - (t + 0.3).min(2.0)).powi(2) + y * y).sqrt();
+        let expected: f64 = (3..=19)
+            .filter(|&k| k != 10)
+            .map(|k| live(k as f64 * 0.1, if k >= 17 { 3.0 } else { 0.5 }))
+            .sum::<f64>()
+            / 16.0;
+        assert!((s.live_mean_m - expected).abs() < 1e-9, "{} vs {expected}", s.live_mean_m);
         assert!((s.motion_accuracy - 13.0 / 16.0).abs() < 1e-12, "{}", s.motion_accuracy);
         assert_eq!(s.los_accuracy, Some(1.0));
     }

@@ -13,9 +13,10 @@ pub mod plot;
 #[cfg(test)]
 mod tests {
     use aim_tracker::filter::FilterKind;
-    use aim_tracker::intake::FrameConverter;
-    use aim_tracker::observation::Input;
+    use aim_tracker::intake::IntakeConfig;
+    use aim_tracker::link::FrameSource;
     use aim_tracker::profile::Profile;
+    use aim_tracker::session::Session;
     use aim_tracker::tracker::{Tracker, TrackerConfig};
 
     use super::{link, metrics};
@@ -45,20 +46,26 @@ position = [0.0, 0.0, 0.05]
         let bytes = link::link_bytes(&sim.arrays[0], crate::DEFAULT_FULL_SCALE_PA).unwrap();
         let (frames, errors) = link::decode_frames(&bytes);
         assert_eq!(errors, 0);
-        let mut converter = FrameConverter::new(site.clone());
-        let inputs: Vec<Input> = frames.iter().filter_map(|f| converter.convert(f)).collect();
-        assert!(inputs.iter().any(|i| matches!(i, Input::Bearing(_))));
-        assert!(inputs.iter().any(|i| matches!(i, Input::Spectrum(_))));
-        let (first, last) = (inputs[0].t(), inputs[inputs.len() - 1].t());
+        assert!(frames.iter().any(|f| matches!(f.body, aim_wire::Body::Doa(_))));
+        assert!(frames.iter().any(|f| matches!(f.body, aim_wire::Body::Peaks(_))));
         for kind in [FilterKind::Paper, FilterKind::Aim] {
-            let mut tracker =
+            let tracker =
                 Tracker::new(site.clone(), Profile::dji_mini_2(), kind, TrackerConfig::default())
                     .unwrap();
+            let mut session = Session::new(tracker, site.clone(), IntakeConfig::default());
             let mut fixes = Vec::new();
-            for i in inputs.iter().cloned() {
-                fixes.extend(tracker.push(i));
-            }
-            fixes.extend(tracker.flush());
+            session
+                .track_reader(&mut FrameSource::new(&bytes[..]), &mut |f| {
+                    fixes.push(f.clone());
+                    Ok(())
+                })
+                .unwrap();
+            let i = session.intake_stats();
+            assert_eq!(
+                (i.late, i.out_of_window, i.bad_span, i.new_epochs, i.gaps),
+                (0, 0, 0, 0, 0)
+            );
+            let (first, last) = session.inputs_span().unwrap();
             let s = metrics::evaluate(&fixes, &sim.truth, 0.1, first, last, 0);
             assert!(s.due > 40, "{s:?}");
             assert_eq!(s.availability, 1.0, "{kind:?}: {s:?}");

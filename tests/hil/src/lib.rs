@@ -7,6 +7,7 @@
 //! (panic-probe → HardFault: probe-rs reports it and exits non-zero).
 #![no_std]
 
+pub mod pin_clock;
 pub mod signal;
 
 /// Reports success and stops the core on a breakpoint, which ends the `probe-rs run` session
@@ -26,9 +27,14 @@ pub fn check_range(what: &str, value: u64, low: u64, high: u64) {
     defmt::info!("ok {=str}: {=u64} in [{=u64}, {=u64}]", what, value, low, high);
 }
 
-/// Brings the board up exactly as the firmware does: clocks (checked), I-cache, DWT.
+/// Brings the board up exactly as the firmware does: silicon revision and HSE probed
+/// (`ClockPlan::probe`: 480 MHz on revision V, 400 MHz before it; HSE bypass or HSI), clocks
+/// (checked), I-cache, MPU stack guard, DWT. Timing checks use
+/// `aim_firmware::clocks::sysclk_hz()`, the core clock chosen here.
 pub fn board() -> (embassy_stm32::Peripherals, aim_firmware::stats::CycleCounter) {
-    let p = embassy_stm32::init(aim_firmware::clocks::embassy_config());
+    let plan = aim_firmware::clocks::ClockPlan::probe();
+    let p = embassy_stm32::init(plan.embassy_config());
+    plan.log();
     let Some(core) = cortex_m::Peripherals::take() else {
         defmt::panic!("FAIL core peripherals already taken");
     };
@@ -43,19 +49,15 @@ pub fn board() -> (embassy_stm32::Peripherals, aim_firmware::stats::CycleCounter
     (p, cycles)
 }
 
-/// The DTCM stack, between the end of the static data (`_stack_end`) and the initial stack
-/// pointer (`_stack_start`): painted before a measurement, scanned after.
+/// The DTCM stack, between the MPU stack guard above the static data
+/// (`aim_firmware::fault::stack_bottom`) and the initial stack pointer (`_stack_start`):
+/// painted before a measurement, scanned after.
 pub mod stack {
     const PAINT: u32 = 0x5AC3_5AC3;
 
-    unsafe extern "C" {
-        static _stack_end: u32;
-        static _stack_start: u32;
-    }
-
     fn bounds() -> (usize, usize) {
-        // Linker-script symbols: only their addresses are taken.
-        (core::ptr::addr_of!(_stack_end) as usize, core::ptr::addr_of!(_stack_start) as usize)
+        use aim_firmware::fault;
+        (fault::stack_bottom() as usize, fault::stack_top() as usize)
     }
 
     /// Stack size available to the firmware, bytes.
@@ -71,7 +73,7 @@ pub mod stack {
         let sp = cortex_m::register::msp::read() as usize;
         let mut p = end;
         while p + 256 < sp {
-            // SAFETY: the words between `_stack_end` and the stack pointer are unused stack:
+            // SAFETY: the words between the stack guard and the stack pointer are unused stack:
             // nothing lives there, and this loop's own frame is above `sp - 256`.
             unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
             p += 4;

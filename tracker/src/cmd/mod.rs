@@ -4,22 +4,47 @@ pub mod record;
 pub mod replay;
 pub mod track;
 
-use aim_tracker::link;
+use aim_tracker::link::{self, serial::Link};
 
 /// The serial link of an array board, as `aim record` and `aim track` take it.
 #[derive(clap::Args)]
 pub struct SerialArgs {
-    /// Serial port of the array board (`/dev/ttyACM0`, `COM3`).
+    /// Serial port of the array board (`/dev/ttyACM0`, `COM3`, a stable name such as
+    /// `/dev/serial/by-id/…` survives replugging best).
     #[arg(long)]
     pub serial: String,
     /// Baud rate.
     #[arg(long, default_value_t = link::serial::DEFAULT_BAUD)]
     pub baud: u32,
+    #[command(flatten)]
+    pub reconnect: ReconnectArgs,
+}
+
+/// What a serial command does when its port is lost (the board unplugged).
+#[derive(clap::Args)]
+pub struct ReconnectArgs {
+    /// Reopen the port by its path when it comes back after a loss (`--reconnect false`: end
+    /// at the first loss, exit status 3).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub reconnect: bool,
+    /// Give up (exit status 3) once a lost port has been away this long, s.
+    #[arg(long, default_value_t = 600.0, value_name = "SECONDS")]
+    pub give_up: f64,
+}
+
+impl ReconnectArgs {
+    /// Opens `port` at `baud` as a [`Link`] with this policy, ended by Ctrl-C / SIGTERM.
+    pub fn open(&self, port: &str, baud: u32) -> anyhow::Result<Link> {
+        let give_up = link::serial::give_up_from_secs(self.give_up, "--give-up")?;
+        let policy = link::serial::Reconnect { enabled: self.reconnect, give_up };
+        let stop = link::serial::interrupt_flag()?;
+        Ok(Link::open(port, baud, policy)?.stop_on(stop))
+    }
 }
 
 impl SerialArgs {
-    /// Opens the port raw, 8N1, at the baud rate.
-    pub fn open(&self) -> anyhow::Result<Box<dyn serialport::SerialPort>> {
-        link::serial::open(&self.serial, self.baud)
+    /// Opens the port raw, 8N1, at the baud rate, reconnecting as the flags say.
+    pub fn open(&self) -> anyhow::Result<Link> {
+        self.reconnect.open(&self.serial, self.baud)
     }
 }

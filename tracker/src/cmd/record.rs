@@ -1,9 +1,18 @@
 //! `aim record`: store the raw byte stream of a serial port in a file.
+//!
+//! It ends after `--duration` or `--frames`, on Ctrl-C / SIGTERM (exit status 130) or when the
+//! port is lost and does not come back (exit status 3); the summary line is printed on every
+//! one of these paths and the file holds every byte read until then. While the board is
+//! unplugged the recording waits (`--reconnect`, `--give-up`) and goes on in the same file.
 
 use std::time::{Duration, Instant};
 
+use aim_tracker::exit::{note, Interrupted};
 use aim_tracker::link::{self, record::Until};
 use anyhow::Context as _;
+
+/// Longest `--duration` accepted, s (one year).
+pub const MAX_DURATION_S: f64 = 365.0 * 86_400.0;
 
 /// Arguments of `aim record`.
 #[derive(clap::Args)]
@@ -13,8 +22,8 @@ pub struct Args {
     /// File to write the raw bytes to (replaced if it exists). Replay with `aim frames FILE`.
     #[arg(long)]
     out: std::path::PathBuf,
-    /// Stop after this many seconds (default: run until interrupted with Ctrl-C; everything
-    /// read until then is in the file).
+    /// Stop after this many seconds, at most a year (default: run until interrupted with
+    /// Ctrl-C; everything read until then is in the file).
     #[arg(long)]
     duration: Option<f64>,
     /// Stop after this many frames have been decoded.
@@ -22,26 +31,34 @@ pub struct Args {
     frames: Option<u64>,
 }
 
+/// The deadline `--duration` sets, or why the value is refused.
+pub fn deadline(duration_s: Option<f64>, now: Instant) -> anyhow::Result<Option<Instant>> {
+    let Some(s) = duration_s else { return Ok(None) };
+    let refuse =
+        || anyhow::anyhow!("--duration must be 0 to {MAX_DURATION_S} s (a year), not {s:?}");
+    if !(s.is_finite() && (0.0..=MAX_DURATION_S).contains(&s)) {
+        return Err(refuse());
+    }
+    let d = Duration::try_from_secs_f64(s).map_err(|_| refuse())?;
+    now.checked_add(d).map(Some).ok_or_else(refuse)
+}
+
 /// Runs `aim record`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let deadline = match args.duration {
-        Some(s) if s.is_finite() && s >= 0.0 => Some(Instant::now() + Duration::from_secs_f64(s)),
-        Some(s) => anyhow::bail!("--duration must be a non-negative number of seconds, not {s}"),
-        None => None,
-    };
+    let deadline = deadline(args.duration, Instant::now())?;
     let mut port = args.link.open()?;
     let mut out = std::fs::File::create(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     // Tests and scripts wait for this line before they send: the port is configured now.
-    eprintln!(
+    note(&format!(
         "recording {} at {} baud to {}",
         args.link.serial,
         args.link.baud,
         args.out.display()
-    );
+    ));
     let spinner = indicatif::ProgressBar::new_spinner();
     let mut last_draw = Instant::now();
-    let stats = link::record::record(
+    let (stats, result) = link::record::record(
         &mut port,
         &mut out,
         Until { deadline, frames: args.frames },
@@ -57,15 +74,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 spinner.tick();
             }
         },
-    )
-    .with_context(|| format!("recording {} to {}", args.link.serial, args.out.display()))?;
+    );
     spinner.finish_and_clear();
-    eprintln!(
-        "recorded {} bytes ({} frames, {} damaged or unknown) to {}",
+    // The summary on every path: done, interrupted, port lost, file error.
+    note(&format!(
+        "recorded {} bytes ({} frames, {} damaged or unknown) to {}{}",
         stats.bytes,
         stats.frames,
         stats.errors(),
-        args.out.display()
-    );
+        args.out.display(),
+        match port.losses() {
+            0 => String::new(),
+            n => format!("; the port was lost {n} time(s)"),
+        }
+    ));
+    result.with_context(|| format!("recording {} to {}", args.link.serial, args.out.display()))?;
+    if port.interrupted() {
+        return Err(Interrupted.into());
+    }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations_out_of_range_are_refused_without_panic() {
+        let now = Instant::now();
+        for bad in [1e300, -1.0, f64::NAN, f64::INFINITY, MAX_DURATION_S * 2.0] {
+            let e = deadline(Some(bad), now).unwrap_err().to_string();
+            assert!(e.starts_with("--duration must be 0 to"), "{e}");
+        }
+        assert_eq!(deadline(Some(1.5), now).unwrap(), Some(now + Duration::from_millis(1500)));
+        assert_eq!(deadline(None, now).unwrap(), None);
+    }
 }

@@ -1,14 +1,17 @@
 //! `aim replay FRAMES --site SITE.toml`: track from a recording of frames (or `-` for stdin)
 //! and print one JSON fix per output period:
-//! `{"t":..,"x":..,"y":..,"z":..,"motion":"hover|yaw|horizontal|vertical","los":true|false}`.
+//! `{"t":..,"available":..,"x":..,"y":..,"z":..,"motion":"hover|yaw|horizontal|vertical","los":true|false}`
+//! (`t`: the instant it describes; `available`: when the array had sent what it used, s), then
+//! one statistics line (`{"kind":"stats",...}`: link, intake and latency counts) on stderr.
 
 use std::io::Write as _;
 use std::path::PathBuf;
 
 use aim_tracker::filter::FilterKind;
-use aim_tracker::intake::FrameConverter;
+use aim_tracker::intake::IntakeConfig;
 use aim_tracker::link::{self, FrameSource};
 use aim_tracker::profile::Profile;
+use aim_tracker::session::Session;
 use aim_tracker::site::Site;
 use aim_tracker::tracker::{Tracker, TrackerConfig};
 use anyhow::Context as _;
@@ -34,21 +37,27 @@ pub struct TrackOptions {
 }
 
 impl TrackOptions {
-    /// The tracker these options describe, and the site's frame converter.
-    pub fn build(&self) -> anyhow::Result<(Tracker, FrameConverter)> {
+    /// The session (intake and tracker) these options describe.
+    pub fn build(&self) -> anyhow::Result<Session> {
         let site = Site::load(&self.site)?;
         let profile = match &self.profile {
             Some(p) => Profile::load(p)?,
             None => Profile::dji_mini_2(),
         };
+        let period = aim_tracker::config::check_flag(
+            self.period,
+            "--period",
+            aim_tracker::config::PERIOD_RANGE_S,
+            "s",
+        )?;
         let config = TrackerConfig {
-            output_period_s: self.period,
+            output_period_s: period,
             array_id: self.array,
             ..TrackerConfig::default()
         };
         let tracker = Tracker::new(site.clone(), profile, self.filter, config)
             .with_context(|| format!("site {}", self.site.display()))?;
-        Ok((tracker, FrameConverter::new(site)))
+        Ok(Session::new(tracker, site, IntakeConfig::default()))
     }
 }
 
@@ -61,48 +70,32 @@ pub struct Args {
     options: TrackOptions,
 }
 
-/// Feeds every frame of `source` through the tracker, printing fixes as JSON lines; `live`
-/// flushes after every fix.
+/// Feeds every frame of `source` through the session, printing fixes as JSON lines as soon as
+/// they are available (`live`: flushed one by one), then the statistics line on stderr.
 pub fn track_frames<R: std::io::Read>(
     name: &str,
     source: &mut FrameSource<R>,
-    tracker: &mut Tracker,
-    converter: &mut FrameConverter,
+    session: &mut Session,
+    site: &std::path::Path,
     live: bool,
 ) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
-    for frame in source.by_ref() {
-        let frame = frame.with_context(|| format!("reading {name}"))?;
-        if let Some(input) = converter.convert(&frame) {
-            for fix in tracker.push(input) {
-                writeln!(out, "{}", fix.to_json()).context("writing to stdout")?;
-                if live {
-                    out.flush().context("writing to stdout")?;
-                }
-            }
-        }
-    }
-    for fix in tracker.flush() {
+    let result = session.track_reader(source, &mut |fix| {
         writeln!(out, "{}", fix.to_json()).context("writing to stdout")?;
-    }
+        if live {
+            out.flush().context("writing to stdout")?;
+        }
+        Ok(())
+    });
     out.flush().context("writing to stdout")?;
-    Ok(())
+    eprintln!("{}", session.stats_json(source.stats()));
+    result.with_context(|| format!("{name} (site {})", site.display()))
 }
 
 /// Runs `aim replay`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (mut tracker, mut converter) = args.options.build()?;
+    let mut session = args.options.build()?;
     let mut source = FrameSource::new(link::open_input(&args.frames)?);
-    track_frames(&args.frames, &mut source, &mut tracker, &mut converter, false)?;
-    let stats = source.stats();
-    if stats.errors() > 0 || converter.unknown_array_frames > 0 {
-        eprintln!(
-            "{}: {} damaged or unknown frames skipped, {} frames from arrays not in the site",
-            args.frames,
-            stats.errors(),
-            converter.unknown_array_frames
-        );
-    }
-    Ok(())
+    track_frames(&args.frames, &mut source, &mut session, &args.options.site, false)
 }

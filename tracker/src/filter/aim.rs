@@ -1,12 +1,13 @@
 //! The project's filter: a Gaussian mixture of position–velocity EKFs (ALGORITHMS.md §8).
 //!
 //! With one array, range is observable only through motion: bearings give the direction, the
-//! DoA rate gives velocity *over range*, and the acoustic speed fixes the scale. The first
+//! DoA rate gives velocity *over range*, and the acoustic speed and the Doppler of the BPF
+//! lines ([`crate::doppler`]) fix the scale. The first
 //! bearing therefore spawns hypotheses spread geometrically along the ray; each is an EKF with
 //! bearing, speed and motion-class updates, weighted by its measurement likelihoods. The
 //! mixture's covariance (spread of hypotheses included) is reported honestly.
 
-use super::ekf::{Ekf, STATE, ZENITH_BIAS};
+use super::ekf::{Ekf, LN_REST, STATE, ZENITH_BIAS};
 use super::{max_range_in_room, world_direction, Estimate, Filter, Step};
 use crate::linalg::Mat;
 use crate::motion::MotionClass;
@@ -64,6 +65,22 @@ pub struct AimConfig {
     pub max_hypotheses: usize,
     /// Hypotheses lighter than this fraction of the heaviest are dropped.
     pub prune_ratio: f64,
+    /// Use the Doppler of the BPF frames ([`crate::doppler`]).
+    pub doppler: bool,
+    /// When a horizontal leg starts from rest, the range hypotheses are spread along the ray
+    /// again (a still drone's range is not observable; a mixture that collapsed onto a wrong
+    /// range in the previous leg would otherwise never leave it). Each new range keeps the
+    /// mixture's weight near it, mixed with this floor fraction spread evenly.
+    pub respread_floor: f64,
+    /// Prior standard deviation of the log emitted BPF against the reference (the profile's
+    /// hover BPF; a drawn drone hovers a few % off it).
+    pub rest_sigma: f64,
+    /// Random-walk density of the log emitted BPF while the drone holds its speed (jitter of
+    /// the controller, slow drift), 1/s.
+    pub q_rest: f64,
+    /// Random-walk density of the log emitted BPF during a manoeuvre (thrust changes by a few
+    /// % within a second: 0.8 Hz of 328 Hz per m/s² of acceleration), 1/s.
+    pub q_rest_manoeuvre: f64,
 }
 
 impl Default for AimConfig {
@@ -89,6 +106,11 @@ impl Default for AimConfig {
             leg_start_speed: 0.5,
             max_hypotheses: 96,
             prune_ratio: 1e-4,
+            doppler: true,
+            respread_floor: 0.05,
+            rest_sigma: 0.05,
+            q_rest: 2e-7,
+            q_rest_manoeuvre: 2e-5,
         }
     }
 }
@@ -128,13 +150,22 @@ impl AimFilter {
             .map(|k| {
                 let r = c.range_min_m * ratio.powi(k as i32);
                 let p = step.array.position;
-                let x =
-                    [p[0] + r * dir[0], p[1] + r * dir[1], p[2] + r * dir[2], 0.0, 0.0, 0.0, 0.0];
+                let x = [
+                    p[0] + r * dir[0],
+                    p[1] + r * dir[1],
+                    p[2] + r * dir[2],
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                ];
                 // Along the ray: half the spacing to the neighbours; across: the bearing noise.
                 let along = r * (ratio - 1.0) * 0.5;
                 let across = r * 3.0f64.to_radians();
                 let mut cov = Mat::zeros(STATE, STATE);
                 cov[(ZENITH_BIAS, ZENITH_BIAS)] = c.zenith_bias_sigma.powi(2);
+                cov[(LN_REST, LN_REST)] = c.rest_sigma.powi(2);
                 for i in 0..3 {
                     for j in 0..3 {
                         let proj = dir[i] * dir[j];
@@ -147,6 +178,75 @@ impl AimFilter {
             })
             .collect();
         true
+    }
+
+    /// Replaces the hypotheses by `hypotheses` ranges along the current bearing, each weighted
+    /// by the mixture's weight near it (in log range, one spacing wide) mixed with
+    /// `respread_floor`; velocity at rest, the zenith bias and emitted BPF of the heaviest.
+    fn respread_ranges(&mut self, step: &Step) {
+        let c = &self.config;
+        if c.respread_floor <= 0.0 || self.components.is_empty() {
+            return;
+        }
+        let Some(doa) = step.doa else { return };
+        let a = step.array.position;
+        let dir = world_direction(step.array, &doa);
+        let r_max = max_range_in_room(a, dir, step.room, c.range_max_m).max(c.range_min_m * 1.5);
+        let n = c.hypotheses.max(2);
+        let ratio = (r_max / c.range_min_m).powf(1.0 / (n - 1) as f64);
+        let spacing = ratio.ln();
+        let best = self.components.iter().max_by(|x, y| x.0.total_cmp(&y.0)).map(|b| b.1.clone());
+        let Some(best) = best else { return };
+        let old: Vec<(f64, f64)> = self
+            .components
+            .iter()
+            .map(|(lw, f)| {
+                let p = f.position();
+                let r = crate::observation::norm([p[0] - a[0], p[1] - a[1], p[2] - a[2]]);
+                (lw.exp(), r.max(1e-3).ln())
+            })
+            .collect();
+        let total: f64 = old.iter().map(|o| o.0).sum();
+        let ranges: Vec<f64> = (0..n).map(|k| c.range_min_m * ratio.powi(k as i32)).collect();
+        let near: Vec<f64> = ranges
+            .iter()
+            .map(|r| {
+                old.iter()
+                    .map(|(w, lr)| w / total * (-0.5 * ((r.ln() - lr) / spacing).powi(2)).exp())
+                    .sum::<f64>()
+            })
+            .collect();
+        let near_total: f64 = near.iter().sum::<f64>().max(1e-300);
+        self.components = ranges
+            .iter()
+            .zip(&near)
+            .map(|(&r, &w)| {
+                let weight =
+                    (1.0 - c.respread_floor) * w / near_total + c.respread_floor / n as f64;
+                let mut f = best.clone();
+                let along = r * (ratio - 1.0) * 0.5;
+                let across = r * 3.0f64.to_radians();
+                for i in 0..3 {
+                    f.x[i] = a[i] + r * dir[i];
+                    f.x[i + 3] = 0.0;
+                }
+                for i in 0..STATE {
+                    for j in 0..6 {
+                        f.p[(i, j)] = 0.0;
+                        f.p[(j, i)] = 0.0;
+                    }
+                }
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let proj = dir[i] * dir[j];
+                        let eye = if i == j { 1.0 } else { 0.0 };
+                        f.p[(i, j)] = along * along * proj + across * across * (eye - proj);
+                    }
+                    f.p[(i + 3, i + 3)] = 0.05;
+                }
+                (weight.max(1e-300).ln(), f)
+            })
+            .collect();
     }
 
     /// Splits every hypothesis into `leg_headings` copies whose horizontal velocities point
@@ -173,7 +273,7 @@ impl AimFilter {
                     for b in 3..5 {
                         g.p[(a, b)] = 0.0;
                     }
-                    for b in [0, 1, 2, 5, 6] {
+                    for b in [0, 1, 2, 5, ZENITH_BIAS, LN_REST] {
                         g.p[(a, b)] = 0.0;
                         g.p[(b, a)] = 0.0;
                     }
@@ -228,6 +328,7 @@ impl Filter for AimFilter {
         } else {
             let from_rest = matches!(self.last_class, Some(MotionClass::Hover | MotionClass::Yaw));
             if from_rest && step.motion == MotionClass::Horizontal {
+                self.respread_ranges(step);
                 self.split_headings();
             }
             self.since_class_change_s = 0.0;
@@ -260,8 +361,10 @@ impl Filter for AimFilter {
         };
         let s = step.speed;
         let moving = matches!(step.motion, MotionClass::Horizontal | MotionClass::Vertical);
+        let q_rest = if manoeuvre { c.q_rest_manoeuvre } else { c.q_rest };
         for (lw, f) in self.components.iter_mut() {
             f.predict(step.dt, q, c.zenith_bias_tau_s, c.zenith_bias_sigma);
+            f.diffuse_rest(q_rest * step.dt);
             let mut ll = 0.0;
             match step.motion {
                 MotionClass::Hover | MotionClass::Yaw => {
@@ -291,6 +394,16 @@ impl Filter for AimFilter {
                 let l = f.update_azimuth(step.array, az, saz).unwrap_or(0.0);
                 if moving {
                     ll += l;
+                }
+            }
+            if c.doppler {
+                for d in &step.doppler {
+                    let l = f
+                        .update_doppler(step.array, d.ln_ratio, d.sigma, step.speed_of_sound_mps)
+                        .unwrap_or(0.0);
+                    if moving {
+                        ll += l;
+                    }
                 }
             }
             if step.motion == MotionClass::Horizontal {
@@ -396,6 +509,8 @@ mod tests {
                 speed,
                 room: None,
                 cruise_speeds: None,
+                doppler: Vec::new(),
+                speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
             };
             if let Some(est) = filter.step(&step) {
                 let err = crate::observation::norm([
@@ -428,5 +543,64 @@ mod tests {
                 assert!(err < 0.6, "leg {j}: position error {err} m");
             }
         }
+    }
+
+    #[test]
+    fn a_leg_from_rest_spreads_a_collapsed_mixture_along_the_ray_again() {
+        // A mixture that has collapsed onto 2 m (every hypothesis there) hovers, then starts a
+        // leg: the ranges come back from range_min to range_max, the heaviest near 2 m, and
+        // every range keeps at least its share of the floor.
+        let c = AimConfig::default();
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let mut filter = AimFilter::new(c.clone());
+        let mut rng = crate::testutil::Rng::new(3);
+        let truth = [5.0, 3.0, 2.0];
+        let collapsed = 2.0 / crate::observation::norm(truth);
+        let here = truth.map(|x| x * collapsed);
+        let mut cov = Mat::identity(STATE).scaled(0.01);
+        cov[(LN_REST, LN_REST)] = 1e-4;
+        filter.components =
+            vec![(0.0, Ekf::new([here[0], here[1], here[2], 0.0, 0.0, 0.0, 0.0, 0.0], cov))];
+        let speed = AcousticSpeed {
+            horizontal: 0.0,
+            horizontal_sigma: 0.1,
+            vertical: 0.0,
+            vertical_sigma: 0.05,
+            horizontal_accel: 0.0,
+            accelerating: false,
+        };
+        for (k, motion) in [MotionClass::Hover, MotionClass::Hover, MotionClass::Horizontal]
+            .into_iter()
+            .enumerate()
+        {
+            let step = Step {
+                t: k as f64 * 0.1,
+                dt: 0.1,
+                array: &array,
+                doa: Some(doa(k as f64 * 0.1, truth, &mut rng)),
+                los: true,
+                motion,
+                speed,
+                room: None,
+                cruise_speeds: None,
+                doppler: Vec::new(),
+                speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
+            };
+            filter.step(&step);
+        }
+        assert_eq!(filter.hypotheses(), c.hypotheses * c.leg_headings);
+        let range = |f: &Ekf| crate::observation::norm(f.position());
+        let (lo, hi) = filter
+            .components
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(l, h), (_, f)| (l.min(range(f)), h.max(range(f))));
+        assert!(lo < 1.2 * c.range_min_m && hi > 0.8 * c.range_max_m, "{lo}..{hi}");
+        let (_, heaviest) = filter.components.iter().max_by(|a, b| a.0.total_cmp(&b.0)).unwrap();
+        assert!((range(heaviest) - 2.0).abs() < 0.6, "heaviest at {} m", range(heaviest));
+        let least = (c.respread_floor / filter.hypotheses() as f64).ln();
+        assert!(
+            filter.components.iter().all(|(lw, _)| *lw >= least - 0.5),
+            "a range lost its floor"
+        );
     }
 }

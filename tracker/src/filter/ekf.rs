@@ -1,6 +1,7 @@
-//! One extended Kalman filter on [x y z vx vy vz b] (world ENU, m and m/s; b the zenith bias of
-//! the array's DoA, rad), white-acceleration process noise, Joseph-form updates that keep the
-//! covariance symmetric positive definite.
+//! One extended Kalman filter on [x y z vx vy vz b d] (world ENU, m and m/s; b the zenith bias of
+//! the array's DoA, rad; d the log of the drone's emitted BPF against a reference, the nuisance
+//! of the Doppler cue, see [`crate::doppler`]), white-acceleration process noise, Joseph-form
+//! updates that keep the covariance symmetric positive definite.
 //!
 //! The bias state exists because a planar array's zenith near grazing incidence is biased by
 //! coherent reflections of the tonal rotor sound (the ceiling and wall images pull |u_xy|
@@ -13,17 +14,21 @@ use crate::observation::{angles_of, wrap_pi};
 use crate::site::ArrayPose;
 
 /// Length of the state vector.
-pub const STATE: usize = 7;
+pub const STATE: usize = 8;
 
 /// Index of the zenith bias in the state.
 pub const ZENITH_BIAS: usize = 6;
 
+/// Index of the log emitted BPF, ln(f_rest / f_ref), in the state.
+pub const LN_REST: usize = 7;
+
 /// State and covariance of one constant-velocity EKF.
 #[derive(Clone, Debug)]
 pub struct Ekf {
-    /// State [x y z vx vy vz b]: position m, velocity m/s, zenith bias rad.
+    /// State [x y z vx vy vz b d]: position m, velocity m/s, zenith bias rad, log emitted BPF
+    /// against the reference (dimensionless).
     pub x: [f64; STATE],
-    /// Covariance, 7×7.
+    /// Covariance, 8×8.
     pub p: Mat,
 }
 
@@ -78,7 +83,51 @@ impl Ekf {
         self.p = (&(&(&f * &self.p) * &f.t()) + &qm).symmetrized();
     }
 
-    /// Update with measurement `z`, prediction `hx`, Jacobian `h` (m×7) and noise `r` (m×m).
+    /// Lets the emitted BPF wander: adds `variance` to the variance of its log (a random walk;
+    /// the controller changes the rotor speeds with thrust and wake).
+    pub fn diffuse_rest(&mut self, variance: f64) {
+        if variance.is_finite() && variance > 0.0 {
+            self.p[(LN_REST, LN_REST)] += variance;
+        }
+    }
+
+    /// Doppler update: a BPF heard at `ln_ratio` = ln(f_obs / f_ref) with standard deviation
+    /// `sigma`, from a source at the state's position and velocity, the sound travelling at
+    /// `speed_of_sound` m/s to the array's centre ([`crate::doppler::observed_ln_ratio`]).
+    /// Skipped (None) with the drone on the array.
+    pub fn update_doppler(
+        &mut self,
+        array: &ArrayPose,
+        ln_ratio: f64,
+        sigma: f64,
+        speed_of_sound: f64,
+    ) -> Option<f64> {
+        let rel = [
+            self.x[0] - array.position[0],
+            self.x[1] - array.position[1],
+            self.x[2] - array.position[2],
+        ];
+        let r = crate::observation::norm(rel);
+        if !(r > 0.1 && ln_ratio.is_finite() && sigma > 0.0) {
+            return None;
+        }
+        let u = [rel[0] / r, rel[1] / r, rel[2] / r];
+        let v = self.velocity();
+        let w = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+        let predicted = crate::doppler::observed_ln_ratio(self.x[LN_REST], rel, v, speed_of_sound)?;
+        // ∂/∂w of −ln(1 + w/c) is −1/(c + w); w = v·u, ∂w/∂v = u, ∂w/∂p = (v − w u)/r.
+        let dw = -1.0 / (speed_of_sound + w);
+        let mut h = Mat::zeros(1, STATE);
+        for i in 0..3 {
+            h[(0, i)] = dw * (v[i] - w * u[i]) / r;
+            h[(0, 3 + i)] = dw * u[i];
+        }
+        h[(0, LN_REST)] = 1.0;
+        let r_noise = Mat::diagonal(&[sigma * sigma]);
+        self.update(&[ln_ratio], &[predicted], &h, &r_noise, Residual::Linear)
+    }
+
+    /// Update with measurement `z`, prediction `hx`, Jacobian `h` (m×8) and noise `r` (m×m).
     /// Returns the log-likelihood of the innovation, or `None` (no update) if the innovation
     /// covariance is singular.
     pub fn update(
@@ -217,8 +266,8 @@ mod tests {
     fn covariance_stays_symmetric_positive_definite() {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.3, 0.0, 0.0);
         let mut f = Ekf::new(
-            [5.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e-3]),
+            [5.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-2]),
         );
         let mut rng = crate::testutil::Rng::new(11);
         for k in 0..300 {
@@ -263,8 +312,8 @@ mod tests {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let truth = [8.0, 3.0, 2.0];
         let mut f = Ekf::new(
-            [truth[0], truth[1], truth[2], 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 0.1f64.powi(2)]),
+            [truth[0], truth[1], truth[2], 0.0, 0.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 0.1f64.powi(2), 1e-4]),
         );
         let (az, zen) = angles_of(truth);
         let offset = 3.0f64.to_radians();
@@ -285,8 +334,8 @@ mod tests {
         // the ray, its distance from the array almost unchanged.
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut f = Ekf::new(
-            [6.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-3]),
+            [6.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-3]),
         );
         let range = |f: &Ekf| f.x[0].hypot(f.x[1]);
         let before = range(&f);
@@ -301,8 +350,8 @@ mod tests {
     fn bearing_update_moves_towards_the_ray() {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut f = Ekf::new(
-            [5.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-6]),
+            [5.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-6, 1e-6]),
         );
         let truth = [5.0, 1.0, 2.0];
         let (az, zen) = angles_of(truth);

@@ -59,6 +59,11 @@ pub struct Step<'a> {
     /// split; see [`crate::wake`]), with standard deviations (m/s), each given once (the leg
     /// mean in `speed` re-uses every frame at every step). `None` before either settles.
     pub cruise_speeds: Option<Vec<(f64, f64)>>,
+    /// The BPF frames heard since the previous step, each as its centre frequency
+    /// ([`crate::doppler::FrameCentre`]), for the Doppler cue.
+    pub doppler: Vec<crate::doppler::DopplerFrame>,
+    /// Speed of sound at the site, m/s.
+    pub speed_of_sound_mps: f64,
 }
 
 /// A filter's output at one step.

@@ -12,6 +12,27 @@ fn round(x: f64, decimals: i32) -> f64 {
     (x * scale).round() / scale
 }
 
+/// A board event ([`crate::link::boards`]): `{"kind":"reboot",...}` or
+/// `{"kind":"duplicate_id",...}`.
+pub fn board_event(event: &crate::link::boards::BoardEvent) -> Value {
+    use crate::link::boards::BoardEvent;
+    match event {
+        BoardEvent::Reboot { array_id, cause, boot_count, message } => json!({
+            "kind": "reboot",
+            "array": array_id,
+            "reset_cause": cause.map_or("unknown", |c| c.name()),
+            "boot_count": boot_count,
+            "panic_message": message,
+        }),
+        BoardEvent::DuplicateId { array_id, before, now } => json!({
+            "kind": "duplicate_id",
+            "array": array_id,
+            "unique_id_before": before,
+            "unique_id_now": now,
+        }),
+    }
+}
+
 /// One frame: `kind`, `array`, `seq`, `sample_index`, `t` (seconds on the array's clock, when
 /// the sample rate is known from a `Hello`), and the payload in physical units.
 pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
@@ -37,6 +58,14 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                 .iter()
                 .map(|m| [f64::from(m[0]) / 1e4, f64::from(m[1]) / 1e4])
                 .collect::<Vec<_>>(),
+            "reset_cause": p.reset_cause().map_or("unknown", |c| c.name()),
+            "boot_count": p.boot_count,
+            "unique_id": crate::link::boards::unique_id_hex(&p.unique_id),
+            "panic_message": p.panic_message.as_str(),
+            "chip_revision": format!("{:#06x}", p.chip_revision),
+            "chip_revision_name": aim_wire::stm32h7_revision_name(p.chip_revision),
+            "clock_source": p.clock_source().map_or("unknown", |c| c.name()),
+            "sysclk_hz": p.sysclk_hz,
         }),
         Body::Doa(p) => json!({
             "azimuth_deg": f64::from(p.azimuth_cdeg) / 100.0,
@@ -57,7 +86,12 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                 "quality": p.quality_of(i).map(|v| round(f64::from(v), 4)),
             })).collect::<Vec<_>>(),
         }),
-        Body::Health(p) => json!({
+        Body::Health(p) => {
+            let mic_levels: (Vec<f64>, Vec<f64>) = (0..usize::from(p.mic_levels.count))
+                .filter_map(|i| p.mic_levels.level_dbfs(i))
+                .map(|(rms, dc)| (f64::from(rms), f64::from(dc)))
+                .unzip();
+            json!({
             "blocks": p.blocks,
             "clipped_samples": p.clipped_samples,
             "peak_dbfs": f64::from(p.peak_ddbfs) / 10.0,
@@ -66,7 +100,20 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
             "dma_overruns": p.dma_overruns,
             "dropped_frames": p.dropped_frames,
             "queue_depth": p.queue_depth,
-        }),
+            "dsp_overloads": p.dsp_overloads,
+            "sai_overruns": p.sai_overruns,
+            "gaps": p.gaps,
+            "frames_lost": p.frames_lost,
+            "outputs_dropped": p.outputs_dropped,
+            "outputs_overflowed": p.outputs_overflowed,
+            "uart_errors": p.uart_errors,
+            "frames_unencodable": p.frames_unencodable,
+            "chunks_captured": p.chunks_captured,
+            // Per microphone in slot order, dBFS (empty when the board sends none).
+            "mic_rms_dbfs": mic_levels.0,
+            "mic_dc_dbfs": mic_levels.1,
+            })
+        }
         // A kind added to aim-wire but not yet here: header only.
         #[allow(unreachable_patterns)]
         _ => json!({}),
@@ -148,6 +195,24 @@ mod tests {
         assert_eq!(
             v["peaks"],
             json!([{"hz":187.5,"amp_db":-20.3,"harmonicity":1.0,"quality":0.2}])
+        );
+    }
+
+    #[test]
+    fn hello_reports_the_chip_revision_and_the_clock() {
+        let mut hello = aim_wire::Hello::new([0, 1, 0], 48_000, 1024, &[]);
+        let f = Frame { header: Header::default(), body: Body::Hello(hello.clone()) };
+        let v = frame(&f, None);
+        assert_eq!(
+            (&v["chip_revision"], &v["chip_revision_name"], &v["clock_source"], &v["sysclk_hz"]),
+            (&json!("0x0000"), &Value::Null, &json!("unknown"), &json!(0))
+        );
+        (hello.chip_revision, hello.clock_source, hello.sysclk_hz) = (0x1003, 2, 400_000_000);
+        let f = Frame { header: Header::default(), body: Body::Hello(hello) };
+        let v = frame(&f, None);
+        assert_eq!(
+            (&v["chip_revision"], &v["chip_revision_name"], &v["clock_source"], &v["sysclk_hz"]),
+            (&json!("0x1003"), &json!("Y"), &json!("hsi"), &json!(400_000_000))
         );
     }
 }

@@ -6,6 +6,7 @@
 //! - [`record`]: copies a port's raw bytes to a file, unchanged, so a replay of the file
 //!   decodes the very frame sequence the live link did.
 //! - [`json`]: frames and statistics as the JSON objects `aim frames` prints.
+//! - [`boards`]: the board behind each array id, from its `Hello`: reboots, duplicate ids.
 //!
 //! ```no_run
 //! use aim_tracker::link::{self, FrameSource};
@@ -19,6 +20,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod boards;
 pub mod json;
 pub mod record;
 pub mod serial;

@@ -22,37 +22,40 @@ pub struct Until {
     pub frames: Option<u64>,
 }
 
-/// Copies bytes from `port` to `out` until `until` says stop; decodes along the way only to
-/// count (the file gets the bytes as read, damage and all). `progress` sees the statistics
-/// after every read. Returns the final statistics.
+/// Copies bytes from `port` to `out` until `until` says stop or `port` ends (a serial
+/// [`super::serial::Link`] ends on Ctrl-C); decodes along the way only to count (the file gets
+/// the bytes as read, damage and all). `progress` sees the statistics after every read.
+/// Returns the final statistics, also when an I/O error of the port or the file ended the
+/// recording (everything read before it is in `out`), with that error.
 pub fn record(
     port: &mut dyn Read,
     out: &mut dyn Write,
     until: Until,
     progress: &mut dyn FnMut(&LinkStats),
-) -> io::Result<LinkStats> {
+) -> (LinkStats, io::Result<()>) {
     let mut deframer: Box<Deframer> = Box::new(Deframer::new());
     let mut buf = vec![0u8; 4096];
-    loop {
+    let result = loop {
         if until.deadline.is_some_and(|d| Instant::now() >= d) {
-            break;
+            break Ok(());
         }
         if until.frames.is_some_and(|n| deframer.stats().frames >= n) {
-            break;
+            break Ok(());
         }
         let n = match port.read(&mut buf) {
-            Ok(0) => break,
+            Ok(0) => break Ok(()),
             Ok(n) => n,
             Err(e) if is_retryable(&e) => continue,
-            Err(e) => return Err(e),
+            Err(e) => break Err(e),
         };
-        out.write_all(&buf[..n])?;
         // Flushed per read: a recording killed by Ctrl-C keeps everything read so far.
-        out.flush()?;
+        if let Err(e) = out.write_all(&buf[..n]).and_then(|()| out.flush()) {
+            break Err(e);
+        }
         for _ in deframer.feed(&buf[..n]) {}
         progress(deframer.stats());
-    }
-    Ok(*deframer.stats())
+    };
+    (*deframer.stats(), result)
 }
 
 #[cfg(test)]
@@ -78,8 +81,9 @@ mod tests {
             &mut out,
             Until { frames: Some(3), ..Until::default() },
             &mut |_| reads += 1,
-        )
-        .unwrap();
+        );
+        stats.1.unwrap();
+        let stats = stats.0;
         assert_eq!(out, input);
         assert_eq!(stats.frames, 3);
         assert_eq!(stats.framing_errors + stats.crc_errors, 1, "the noise");
@@ -99,8 +103,9 @@ mod tests {
         }
         let mut out = Vec::new();
         let deadline = Some(Instant::now() + std::time::Duration::from_millis(30));
-        let stats =
-            record(&mut Quiet, &mut out, Until { deadline, frames: None }, &mut |_| {}).unwrap();
+        let (stats, result) =
+            record(&mut Quiet, &mut out, Until { deadline, frames: None }, &mut |_| {});
+        result.unwrap();
         assert!(out.is_empty());
         assert_eq!(stats.bytes, 0);
     }

@@ -3,7 +3,7 @@
 
 use aim_wire::{
     cobs, crc32, encode, Body, Detection, Doa, Frame, Header, Health, Hello, Kind, Peak, Peaks,
-    CRC_LEN, MAX_ENCODED_LEN, MAX_MICS, MAX_PEAKS,
+    CRC_LEN, MAX_ENCODED_LEN, MAX_MICS, MAX_PANIC_MESSAGE, MAX_PEAKS, UNIQUE_ID_LEN,
 };
 
 /// SplitMix64: a tiny, seedable, well-mixed generator (the tests need no more).
@@ -54,7 +54,11 @@ pub fn sample_frames() -> Vec<Frame> {
     vec![
         Frame {
             header: header(0, 0),
-            body: Body::Hello(Hello::new([0, 1, 0], 48_000, 1024, &positions)),
+            body: Body::Hello({
+                let mut hello = Hello::new([0, 1, 0], 48_000, 1024, &positions);
+                sample_hello_start(&mut hello);
+                hello
+            }),
         },
         Frame {
             header: header(1, 3_072_000),
@@ -85,9 +89,28 @@ pub fn sample_frames() -> Vec<Frame> {
                 dma_overruns: 0,
                 dropped_frames: 2,
                 queue_depth: 1,
+                dsp_overloads: 1,
+                sai_overruns: 0,
+                gaps: 2,
+                frames_lost: 2_304,
+                outputs_dropped: 3,
+                outputs_overflowed: 0,
+                uart_errors: 0,
+                frames_unencodable: 0,
+                chunks_captured: 562_688,
+                // Without the per-microphone levels: the bytes of a board that sends none.
+                mic_levels: aim_wire::MicLevels::default(),
             }),
         },
     ]
+}
+
+/// The sample `Hello` as a board reports its start: after a panic, second boot since power-on.
+pub fn sample_hello_start(hello: &mut Hello) {
+    hello.reset_cause = aim_wire::ResetCause::Panic.code();
+    hello.boot_count = 2;
+    hello.unique_id = [0x33, 0x00, 0x4A, 0x00, 0x0E, 0x51, 0x31, 0x30, 0x36, 0x38, 0x35, 0x39];
+    hello.set_panic_message("src/processing.rs:171 index out of bounds");
 }
 
 /// The frame of `kind` whose every varint is at its widest: its encoding is the longest.
@@ -99,6 +122,14 @@ pub fn worst_case(kind: Kind) -> Frame {
             sample_rate_hz: u32::MAX,
             block_len: u16::MAX,
             mic_positions_decimm: heapless::Vec::from_slice(&[[i16::MIN; 2]; MAX_MICS]).unwrap(),
+            reset_cause: u8::MAX,
+            boot_count: u32::MAX,
+            unique_id: [u8::MAX; UNIQUE_ID_LEN],
+            // 0x7F is the longest character whose byte COBS and postcard leave alone.
+            panic_message: core::iter::repeat_n('\u{7f}', MAX_PANIC_MESSAGE).collect(),
+            chip_revision: u16::MAX,
+            clock_source: u8::MAX,
+            sysclk_hz: u32::MAX,
         }),
         Kind::Doa => Body::Doa(Doa {
             span_samples: u32::MAX,
@@ -128,6 +159,20 @@ pub fn worst_case(kind: Kind) -> Frame {
             dma_overruns: u32::MAX,
             dropped_frames: u32::MAX,
             queue_depth: u8::MAX,
+            dsp_overloads: u32::MAX,
+            sai_overruns: u32::MAX,
+            gaps: u32::MAX,
+            frames_lost: u32::MAX,
+            outputs_dropped: u32::MAX,
+            outputs_overflowed: u32::MAX,
+            uart_errors: u32::MAX,
+            frames_unencodable: u32::MAX,
+            chunks_captured: u32::MAX,
+            mic_levels: aim_wire::MicLevels {
+                count: aim_wire::MAX_MICS as u8,
+                rms_ddbfs: [i16::MIN; aim_wire::MAX_MICS],
+                dc_ddbfs: [i16::MIN; aim_wire::MAX_MICS],
+            },
         }),
         _ => unreachable!("a kind without a worst case: add it here"),
     };
@@ -146,6 +191,15 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
             mic_positions_decimm: (0..rng.below(MAX_MICS + 1))
                 .map(|_| [rng.u64() as i16, rng.u64() as i16])
                 .collect(),
+            reset_cause: rng.byte(),
+            boot_count: small(rng),
+            unique_id: core::array::from_fn(|_| rng.byte()),
+            panic_message: (0..rng.below(MAX_PANIC_MESSAGE / 4 + 1))
+                .map(|_| char::from_u32(rng.u64() as u32 % 0x11_0000).unwrap_or('\u{fffd}'))
+                .collect(),
+            chip_revision: small(rng) as u16,
+            clock_source: rng.byte(),
+            sysclk_hz: small(rng),
         }),
         1 => Body::Doa(Doa {
             span_samples: small(rng),
@@ -177,6 +231,24 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
             dma_overruns: small(rng),
             dropped_frames: small(rng),
             queue_depth: rng.byte(),
+            dsp_overloads: small(rng),
+            sai_overruns: small(rng),
+            gaps: small(rng),
+            frames_lost: small(rng),
+            outputs_dropped: small(rng),
+            outputs_overflowed: small(rng),
+            uart_errors: small(rng),
+            frames_unencodable: small(rng),
+            chunks_captured: small(rng),
+            mic_levels: {
+                let count = rng.below(aim_wire::MAX_MICS + 1) as u8;
+                let mut levels = aim_wire::MicLevels { count, ..aim_wire::MicLevels::default() };
+                for i in 0..usize::from(count) {
+                    levels.rms_ddbfs[i] = rng.u64() as i16;
+                    levels.dc_ddbfs[i] = rng.u64() as i16;
+                }
+                levels
+            },
         }),
     };
     Frame { header, body }

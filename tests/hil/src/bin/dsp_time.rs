@@ -18,7 +18,7 @@
 #![no_main]
 
 use aim_dsp::Output;
-use aim_firmware::clocks::SYSCLK_HZ;
+use aim_firmware::clocks::sysclk_hz;
 use aim_firmware::config::{
     CAPTURE_QUEUE_CHUNKS, CHUNK_FRAMES, CHUNK_WORDS, SAMPLE_RATE_HZ, TDM_SLOTS,
 };
@@ -94,8 +94,8 @@ fn main() -> ! {
         }
     }
 
-    let real_time = u64::from(SYSCLK_HZ) * block_len / u64::from(SAMPLE_RATE_HZ);
-    let slack = u64::from(SYSCLK_HZ) * (CAPTURE_QUEUE_CHUNKS as u64 - 1) * CHUNK_FRAMES as u64
+    let real_time = u64::from(sysclk_hz()) * block_len / u64::from(SAMPLE_RATE_HZ);
+    let slack = u64::from(sysclk_hz()) * (CAPTURE_QUEUE_CHUNKS as u64 - 1) * CHUNK_FRAMES as u64
         / u64::from(SAMPLE_RATE_HZ);
     defmt::info!(
         "{=u32} blocks: cycles per block mean {=u32}, max {=u32}; per push max {=u32}; real time {=u64} cycles per block",

@@ -75,6 +75,9 @@ fn output(i: u32) -> Option<Output> {
             clipped_samples: i / 7,
             peak_dbfs: -20.0,
             block_exponent: 3,
+            mics: 4,
+            mic_rms_dbfs: [-40.0; aim_dsp::MAX_MICS],
+            mic_dc_dbfs: [-90.0; aim_dsp::MAX_MICS],
         })),
     }
 }
@@ -84,10 +87,11 @@ async fn produce() {
     let config = processing::dsp_config();
     let hello = aim_wire::Body::Hello(from_dsp::hello(&config, [0, 1, 0]));
     let counters = FirmwareCounters { cycles_per_block: 123_456, ..Default::default() };
-    let mut sink = FrameSink::new();
+    let array_id = aim_firmware::config::array_id(&embassy_stm32::uid::uid());
+    let mut sink = FrameSink::new(array_id);
     // A second encoder with the same array id stamps the same sequence numbers: its bytes are
     // the bytes the sink queues.
-    let mut check = Encoder::new(aim_firmware::config::ARRAY_ID);
+    let mut check = Encoder::new(array_id);
     let mut buffer = [0u8; MAX_ENCODED_LEN];
     let mut bytes: u64 = 0;
 

@@ -12,6 +12,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod pdm;
 pub mod probe;
 pub mod report;
 pub mod scenario;

@@ -32,6 +32,8 @@ pub enum Probe {
     ReferenceRfft = 8,
     /// Encoding outputs into wire frames.
     Encode = 9,
+    /// PDM decimation (`aim_dsp::pdm`): PDM bytes to the pipeline's 48 kHz words.
+    Pdm = 10,
     /// Writes the totals of the section that ends here.
     Dump = 15,
 }
@@ -41,7 +43,7 @@ pub const SLOTS: usize = 16;
 
 impl Probe {
     /// Every probe, in id order.
-    pub const ALL: [Probe; 11] = [
+    pub const ALL: [Probe; 12] = [
         Probe::Untracked,
         Probe::Input,
         Probe::PipelineOther,
@@ -52,6 +54,7 @@ impl Probe {
         Probe::Bpf,
         Probe::ReferenceRfft,
         Probe::Encode,
+        Probe::Pdm,
         Probe::Dump,
     ];
 
@@ -78,6 +81,7 @@ impl Probe {
             Probe::Bpf => "bpf",
             Probe::ReferenceRfft => "rfft1024",
             Probe::Encode => "encode",
+            Probe::Pdm => "pdm",
             Probe::Dump => "dump",
         }
     }
@@ -92,6 +96,7 @@ impl Probe {
                 | Probe::Inverse
                 | Probe::Doa
                 | Probe::Bpf
+                | Probe::Pdm
         )
     }
 }

@@ -5,7 +5,13 @@ use core::fmt::{self, Write};
 use aim_dsp::{Output, Pipeline};
 use aim_wire::{from_dsp, Body, Encoder, MAX_ENCODED_LEN};
 
-use crate::{scenario::PARITY, signal::Signal};
+use aim_dsp::pdm::{PdmDecimator, BYTES_PER_OUTPUT};
+
+use crate::{
+    pdm::PdmSignal,
+    scenario::{COST, PARITY},
+    signal::Signal,
+};
 
 /// Sample rate of the reference `rfft_1024` input, Hz.
 pub const SAMPLE_RATE_HZ: u32 = 48_000;
@@ -20,6 +26,7 @@ pub const MAX_TDM_SLOTS: usize = 8;
 /// where it lives) for every scenario in turn.
 pub fn write_parity(w: &mut impl Write, pipeline: &mut Pipeline) -> fmt::Result {
     write_rfft(w)?;
+    write_pdm(w)?;
     for scenario in &PARITY {
         writeln!(w, "scenario {}", scenario.name)?;
         let config = scenario.config();
@@ -54,6 +61,41 @@ pub fn write_parity(w: &mut impl Write, pipeline: &mut Pipeline) -> fmt::Result 
     writeln!(w, "end")
 }
 
+/// Chunks of [`CHUNK_FRAMES`] frames of the PDM parity check: 0.256 s at 48 kHz.
+pub const PDM_PARITY_CHUNKS: usize = 48;
+
+/// The PDM decimator (`aim_dsp::pdm`) on the golden PDM of the 8-microphone scenario, one line
+/// per chunk: `pdm <chunk> <frames> <FNV-1a 64 of every word> <the chunk's first frame>`, words
+/// in hex.
+fn write_pdm(w: &mut impl Write) -> fmt::Result {
+    let scenario = &COST[2];
+    let mics = scenario.config().tdm_slots;
+    let mut pdm = PdmSignal::new(scenario.signal(), mics);
+    let mut decimator = PdmDecimator::new(mics, mics);
+    let mut bytes = [0u8; CHUNK_FRAMES * BYTES_PER_OUTPUT * MAX_TDM_SLOTS];
+    let bytes = &mut bytes[..CHUNK_FRAMES * pdm.frame_bytes()];
+    let mut words = [0i32; CHUNK_FRAMES * MAX_TDM_SLOTS];
+    let words = &mut words[..CHUNK_FRAMES * mics];
+    for chunk in 0..PDM_PARITY_CHUNKS {
+        pdm.fill(bytes);
+        match decimator.push(bytes, words, mics) {
+            Ok(frames) => {
+                let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+                for byte in words.iter().flat_map(|word| word.to_le_bytes()) {
+                    hash = (hash ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3);
+                }
+                write!(w, "pdm {chunk} {frames} {hash:016x}")?;
+                for word in &words[..mics] {
+                    write!(w, " {word:08x}")?;
+                }
+                writeln!(w)?;
+            }
+            Err(e) => writeln!(w, "pdm {chunk} error {e:?}")?,
+        }
+    }
+    Ok(())
+}
+
 /// Array id in the frames' headers.
 const ARRAY_ID: u8 = 3;
 
@@ -66,6 +108,15 @@ const COUNTERS: from_dsp::FirmwareCounters = from_dsp::FirmwareCounters {
     dma_overruns: 2,
     dropped_frames: 300,
     queue_depth: 4,
+    dsp_overloads: 5,
+    sai_overruns: 6,
+    gaps: 7,
+    frames_lost: 70_000,
+    outputs_dropped: 8,
+    outputs_overflowed: 9,
+    uart_errors: 10,
+    frames_unencodable: 11,
+    chunks_captured: 123_456,
 };
 
 /// One encoded frame, `frame <hex bytes>`, or the encoder's error.
@@ -138,5 +189,27 @@ pub fn reference_rfft_input(x: &mut [f32; 1024]) {
     signal.fill(&mut words);
     for (x, w) in x.iter_mut().zip(words) {
         *x = (w >> 8) as f32 * (1.0 / 8_388_608.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_report_holds_the_pdm_decimator_chunks() {
+        let mut report = String::new();
+        let mut pipeline = Box::new(Pipeline::empty());
+        write_parity(&mut report, &mut pipeline).unwrap();
+        let pdm: Vec<&str> = report.lines().filter(|l| l.starts_with("pdm ")).collect();
+        assert_eq!(pdm.len(), PDM_PARITY_CHUNKS);
+        for (chunk, line) in pdm.iter().enumerate() {
+            let fields: Vec<&str> = line.split(' ').collect();
+            assert_eq!(fields[1], chunk.to_string());
+            assert_eq!(fields[2], CHUNK_FRAMES.to_string(), "{line}");
+            assert_eq!(fields.len(), 4 + 8, "{line}");
+        }
+        // The words carry the golden tone: not all chunks hash alike.
+        assert_ne!(pdm[10].split(' ').nth(3), pdm[11].split(' ').nth(3));
     }
 }

@@ -10,14 +10,19 @@
 use core::fmt::Write;
 
 use aim_golden::{
-    aim_dsp::{Output, Pipeline},
+    aim_dsp::{
+        pdm::{PdmDecimator, BYTES_PER_OUTPUT},
+        Output, Pipeline,
+    },
     aim_wire::{
         from_dsp::{self, FirmwareCounters},
         Encoder, MAX_ENCODED_LEN,
     },
+    pdm::PdmSignal,
     probe::Probe,
     report::{self, CHUNK_FRAMES, MAX_TDM_SLOTS},
     scenario::{Scenario, COST},
+    signal::Signal,
 };
 use aim_qemu_m4f::{fail, probe, succeed, Out, StackGauge};
 use cortex_m_rt::entry;
@@ -35,8 +40,18 @@ fn main() -> ! {
 fn run(out: &mut Out, pipeline: &mut Pipeline) -> core::fmt::Result {
     writeln!(out, "ram pipeline {}", core::mem::size_of::<Pipeline>())?;
     for scenario in &COST {
-        measure(out, pipeline, scenario)?;
+        measure(out, pipeline, scenario, "", &mut scenario.signal())?;
     }
+    // The 8-microphone array with PDM microphones: decimator + the same pipeline.
+    let scenario = &COST[2];
+    let mics = scenario.config().tdm_slots;
+    let mut pdm = PdmInput {
+        pdm: PdmSignal::new(scenario.signal(), mics),
+        decimator: PdmDecimator::new(mics, mics),
+        bytes: [0; CHUNK_FRAMES * BYTES_PER_OUTPUT * MAX_TDM_SLOTS],
+    };
+    measure(out, pipeline, scenario, "-pdm", &mut pdm)?;
+    writeln!(out, "ram pdm-decimator {}", core::mem::size_of::<PdmDecimator>())?;
 
     // Reference figure: one microfft rfft_1024 on golden input.
     let mut x = [0f32; 1024];
@@ -51,14 +66,20 @@ fn run(out: &mut Out, pipeline: &mut Pipeline) -> core::fmt::Result {
     Ok(())
 }
 
-/// Warms the pipeline up for two BPF hops, then measures `measured_samples` of golden input.
-fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core::fmt::Result {
+/// Warms the pipeline up for two BPF hops, then measures `measured_samples` of golden input
+/// from `signal` (section `<scenario><suffix>`).
+fn measure(
+    out: &mut Out,
+    pipeline: &mut Pipeline,
+    scenario: &Scenario,
+    suffix: &str,
+    signal: &mut dyn Input,
+) -> core::fmt::Result {
     let config = scenario.config();
     if pipeline.configure(&config).is_err() {
         writeln!(out, "error: scenario {} does not configure", scenario.name)?;
         fail();
     }
-    let mut signal = scenario.signal();
     let mut words = [0i32; CHUNK_FRAMES * MAX_TDM_SLOTS];
     let words = &mut words[..CHUNK_FRAMES * config.tdm_slots];
     // As in the firmware: the sink keeps the outputs of a chunk, which are encoded into frames
@@ -86,7 +107,7 @@ fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core:
         probe(Probe::Untracked);
         encode(&mut pending);
     }
-    writeln!(out, "section warmup-{} {warm_up} {}", scenario.name, config.sample_rate_hz)?;
+    writeln!(out, "section warmup-{}{suffix} {warm_up} {}", scenario.name, config.sample_rate_hz)?;
     probe(Probe::Dump);
     let start = signal.sample_index();
     let end = start + scenario.measured_samples() as u64;
@@ -102,13 +123,58 @@ fn measure(out: &mut Out, pipeline: &mut Pipeline, scenario: &Scenario) -> core:
     }
     let stack = gauge.used();
     core::hint::black_box(bytes);
-    writeln!(out, "ram stack-{} {stack}", scenario.name)?;
+    writeln!(out, "ram stack-{}{suffix} {stack}", scenario.name)?;
     // Working memory of the DSP: the pipeline itself plus the deepest stack of the measured
     // loop (input synthesis, `push` with its sink, the encode path): an upper bound for `push`.
-    writeln!(out, "ram dsp-{} {}", scenario.name, core::mem::size_of::<Pipeline>() + stack)?;
-    writeln!(out, "section {} {} {}", scenario.name, end - start, config.sample_rate_hz)?;
+    writeln!(
+        out,
+        "ram dsp-{}{suffix} {}",
+        scenario.name,
+        core::mem::size_of::<Pipeline>() + stack
+    )?;
+    writeln!(out, "section {}{suffix} {} {}", scenario.name, end - start, config.sample_rate_hz)?;
     probe(Probe::Dump);
     Ok(())
+}
+
+/// Where a measured section's TDM words come from.
+trait Input {
+    /// Writes the next chunk of words (charged to `input`, or to the probes it switches to).
+    fn fill(&mut self, words: &mut [i32]);
+    /// Index of the next frame `fill` writes.
+    fn sample_index(&self) -> u64;
+}
+
+impl Input for Signal {
+    fn fill(&mut self, words: &mut [i32]) {
+        Signal::fill(self, words);
+    }
+    fn sample_index(&self) -> u64 {
+        Signal::sample_index(self)
+    }
+}
+
+/// PDM microphones: the golden PDM bytes of a chunk (synthesis charged to `input`), then the
+/// decimator (charged to `pdm`), which writes the words.
+struct PdmInput {
+    pdm: PdmSignal,
+    decimator: PdmDecimator,
+    bytes: [u8; CHUNK_FRAMES * BYTES_PER_OUTPUT * MAX_TDM_SLOTS],
+}
+
+impl Input for PdmInput {
+    fn fill(&mut self, words: &mut [i32]) {
+        let bytes = &mut self.bytes[..CHUNK_FRAMES * self.pdm.frame_bytes()];
+        self.pdm.fill(bytes);
+        probe(Probe::Pdm);
+        let slots = self.decimator.mics();
+        if self.decimator.push(bytes, words, slots) != Ok(CHUNK_FRAMES) {
+            fail();
+        }
+    }
+    fn sample_index(&self) -> u64 {
+        self.pdm.sample_index()
+    }
 }
 
 /// Most outputs one chunk of 256 frames can complete (as in the firmware).

@@ -1,0 +1,512 @@
+//! `host-sim bench SUITE.toml --out DIR [--seeds evaluation|tuning] [--family NAME]...
+//! [--threads N]`: runs a declared suite, scenario families × seeds, each run through the same
+//! simulation and tracking `host-sim fly` does (its [`crate::cmd::fly::track`]), both filters,
+//! on all cores, and writes per family the mean ± sd over seeds of the mean, median and p90
+//! error, availability and motion-class accuracy.
+//!
+//! Suite file (TOML; paths relative to it):
+//!
+//! ```toml
+//! description = "..."
+//! tuning_seeds = [101, 102]          # seeds filters may be tuned on (never reported)
+//! evaluation_seeds = [1001, 1002]    # held-out seeds the tables report; disjoint from tuning
+//! filters = ["paper", "aim"]         # [both]
+//! period_s = 0.1                     # [0.1] tracker output period
+//! profile = "../../tracker/profiles/dji-mini-2.toml"   # [the bundled DJI Mini 2 profile]
+//! [airframe]                         # the population every run draws its airframe from
+//! wake_spread = 0.3                  # (keys of a scenario's [airframe]; merged over each file's)
+//!
+//! [[family]]
+//! name = "square10-los"
+//! scenario = "../scenarios/square10-los.toml"
+//! # [family.airframe] overrides the suite's population for this family only
+//! ```
+//!
+//! Each seed replaces the scenario's `seed`, so it draws the noise, the microphones' mismatch,
+//! the airframe and (for a random walk) the course. Writes `DIR/runs.csv` (one row per family,
+//! seed and filter), `DIR/summary.csv` and `DIR/summary.md` (per family and filter, mean ± sd
+//! over seeds), and each run's `fly` output under `DIR/runs/<family>/seed-<n>/`.
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use anyhow::{anyhow, bail, Context as _};
+use serde::Deserialize;
+
+use aim_tracker::filter::FilterKind;
+use aim_tracker::profile::Profile;
+use host_sim::eval::metrics::Summary;
+use host_sim::scenario::Scenario;
+
+use super::fly::{filter_name, track};
+
+/// Arguments of `host-sim bench`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Suite file (TOML), e.g. `host-sim/suites/default.toml`.
+    suite: PathBuf,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+    /// Which of the suite's seeds to run: `evaluation` (reported) or `tuning`.
+    #[arg(long, default_value = "evaluation")]
+    seeds: String,
+    /// Run only these families (repeatable; default: all).
+    #[arg(long = "family")]
+    families: Vec<String>,
+    /// Runs at once (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SuiteFile {
+    #[serde(default)]
+    description: String,
+    tuning_seeds: Vec<u64>,
+    evaluation_seeds: Vec<u64>,
+    filters: Option<Vec<String>>,
+    period_s: Option<f64>,
+    profile: Option<PathBuf>,
+    #[serde(default)]
+    airframe: toml::Table,
+    family: Vec<FamilyFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FamilyFile {
+    name: String,
+    scenario: PathBuf,
+    #[serde(default)]
+    airframe: toml::Table,
+}
+
+/// One scenario family of a suite.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Family {
+    /// Name in the tables.
+    pub name: String,
+    /// Scenario file.
+    pub scenario: PathBuf,
+    /// Overrides merged over the scenario (its `[airframe]` population).
+    pub overrides: toml::Table,
+}
+
+/// A checked suite.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Suite {
+    /// Free text.
+    pub description: String,
+    /// Seeds the filters may be tuned on.
+    pub tuning_seeds: Vec<u64>,
+    /// Held-out seeds the tables report.
+    pub evaluation_seeds: Vec<u64>,
+    /// Filters to run.
+    pub filters: Vec<FilterKind>,
+    /// Tracker output period, s.
+    pub period_s: f64,
+    /// Tracker profile file (None: the bundled DJI Mini 2 profile).
+    pub profile: Option<PathBuf>,
+    /// The families.
+    pub families: Vec<Family>,
+}
+
+impl Suite {
+    /// Reads and checks a suite file: seeds present, unique, the two lists disjoint (the
+    /// error names the shared seeds), families named once, their scenario files readable with
+    /// every seed's overrides.
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        Self::parse(&text, path)
+    }
+
+    /// [`Suite::load`] on text; `path` names the file in errors and anchors relative paths.
+    pub fn parse(text: &str, path: &Path) -> anyhow::Result<Self> {
+        let f: SuiteFile = toml::from_str(text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        let err = |m: String| anyhow!("{}: {m}", path.display());
+        for (name, list) in
+            [("tuning_seeds", &f.tuning_seeds), ("evaluation_seeds", &f.evaluation_seeds)]
+        {
+            if list.is_empty() {
+                return Err(err(format!("{name} is empty")));
+            }
+            let unique: BTreeSet<u64> = list.iter().copied().collect();
+            if unique.len() != list.len() {
+                return Err(err(format!("{name} lists a seed twice")));
+            }
+            if let Some(s) = list.iter().find(|&&s| s > i64::MAX as u64) {
+                return Err(err(format!("{name}: seed {s} is above {}", i64::MAX)));
+            }
+        }
+        let tuning: BTreeSet<u64> = f.tuning_seeds.iter().copied().collect();
+        let shared: Vec<String> =
+            f.evaluation_seeds.iter().filter(|s| tuning.contains(s)).map(u64::to_string).collect();
+        if !shared.is_empty() {
+            return Err(err(format!(
+                "tuning_seeds and evaluation_seeds must be disjoint; both list {}",
+                shared.join(", ")
+            )));
+        }
+        let filters = match &f.filters {
+            None => vec![FilterKind::Paper, FilterKind::Aim],
+            Some(names) => names
+                .iter()
+                .map(|n| n.parse::<FilterKind>().map_err(|e| err(format!("filters: {e}"))))
+                .collect::<anyhow::Result<Vec<_>>>()?,
+        };
+        if filters.is_empty() {
+            return Err(err("filters is empty".into()));
+        }
+        let period_s = f.period_s.unwrap_or(0.1);
+        if !(period_s > 0.0 && period_s <= 10.0) {
+            return Err(err(format!("period_s {period_s} must be in (0, 10]")));
+        }
+        if f.family.is_empty() {
+            return Err(err("no [[family]]".into()));
+        }
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let mut families: Vec<Family> = Vec::new();
+        for fam in f.family {
+            if families.iter().any(|x| x.name == fam.name) {
+                return Err(err(format!("family `{}` appears twice", fam.name)));
+            }
+            if fam.name.is_empty() || fam.name.contains(['/', '\\']) {
+                return Err(err(format!("family name `{}` must be a plain word", fam.name)));
+            }
+            let mut airframe = f.airframe.clone();
+            for (k, v) in fam.airframe {
+                airframe.insert(k, v);
+            }
+            let mut overrides = toml::Table::new();
+            if !airframe.is_empty() {
+                overrides.insert("airframe".into(), toml::Value::Table(airframe));
+            }
+            let scenario = dir.join(&fam.scenario);
+            // Check it now (with one seed) rather than after an hour of other runs.
+            Scenario::load_with(&scenario, f.evaluation_seeds[0], &overrides)
+                .with_context(|| format!("{}: family `{}`", path.display(), fam.name))?;
+            families.push(Family { name: fam.name, scenario, overrides });
+        }
+        Ok(Self {
+            description: f.description,
+            tuning_seeds: f.tuning_seeds,
+            evaluation_seeds: f.evaluation_seeds,
+            filters,
+            period_s,
+            profile: f.profile.map(|p| dir.join(p)),
+            families,
+        })
+    }
+}
+
+/// One finished run: a family, a seed, a filter.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    /// Family name.
+    pub family: String,
+    /// Seed.
+    pub seed: u64,
+    /// Filter.
+    pub filter: FilterKind,
+    /// Its errors.
+    pub summary: Summary,
+}
+
+/// Mean and sample standard deviation (0 for one value).
+pub fn mean_sd(x: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    if x.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let mean = x.iter().sum::<f64>() / n;
+    let var = if x.len() > 1 {
+        x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0)
+    } else {
+        0.0
+    };
+    (mean, var.sqrt())
+}
+
+/// Per family and filter, over seeds: (family, filter, seeds, [mean, median, p90,
+/// availability, motion class, live mean, good availability] as (mean, sd)).
+type Row = (String, FilterKind, usize, [(f64, f64); 7]);
+
+fn aggregate(suite: &Suite, results: &[RunResult]) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for fam in &suite.families {
+        for &filter in &suite.filters {
+            let runs: Vec<&Summary> = results
+                .iter()
+                .filter(|r| r.family == fam.name && r.filter == filter)
+                .map(|r| &r.summary)
+                .collect();
+            if runs.is_empty() {
+                continue;
+            }
+            let stat =
+                |f: fn(&Summary) -> f64| mean_sd(&runs.iter().map(|s| f(s)).collect::<Vec<_>>());
+            rows.push((
+                fam.name.clone(),
+                filter,
+                runs.len(),
+                [
+                    stat(|s| s.mean_m),
+                    stat(|s| s.median_m),
+                    stat(|s| s.p90_m),
+                    stat(|s| s.availability),
+                    stat(|s| s.motion_accuracy),
+                    stat(|s| s.live_mean_m),
+                    stat(|s| s.good_availability),
+                ],
+            ));
+        }
+    }
+    rows
+}
+
+/// The CSV of one row per run.
+pub fn runs_csv(results: &[RunResult]) -> String {
+    let mut s = String::from(
+        "family,seed,filter,mean_m,median_m,p90_m,availability,fixes,due,motion_accuracy,los_accuracy,live_mean_m,good_availability\n",
+    );
+    for r in results {
+        let m = &r.summary;
+        let _ = writeln!(
+            s,
+            "{},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{:.4},{},{:.4},{:.4}",
+            r.family,
+            r.seed,
+            filter_name(r.filter),
+            m.mean_m,
+            m.median_m,
+            m.p90_m,
+            m.availability,
+            m.fixes,
+            m.due,
+            m.motion_accuracy,
+            m.los_accuracy.map_or(String::new(), |a| format!("{a:.4}")),
+            m.live_mean_m,
+            m.good_availability,
+        );
+    }
+    s
+}
+
+/// The summary as CSV and as a markdown table.
+fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (String, String) {
+    let rows = aggregate(suite, results);
+    let mut csv = String::from(
+        "family,filter,seeds,mean_m,mean_m_sd,median_m,median_m_sd,p90_m,p90_m_sd,availability,availability_sd,motion_accuracy,motion_accuracy_sd,live_mean_m,live_mean_m_sd,good_availability,good_availability_sd\n",
+    );
+    let mut md = format!(
+        "{} seeds; each cell: mean ± sd over seeds of the per-run figure. Errors are at the \
+         instant a fix describes; *live* is against where the drone is when the fix becomes \
+         available; *fixes ≤ {good} m* is the share of due output instants with a fix that close.\n\n\
+         | family | filter | seeds | mean error | median error | p90 error | live mean error | availability | fixes ≤ {good} m | motion class |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
+        seeds_label,
+        good = host_sim::eval::metrics::GOOD_FIX_M,
+    );
+    for (family, filter, n, st) in &rows {
+        let _ = write!(csv, "{family},{},{n}", filter_name(*filter));
+        for (m, sd) in st {
+            let _ = write!(csv, ",{m:.4},{sd:.4}");
+        }
+        csv.push('\n');
+        let _ = writeln!(
+            md,
+            "| {family} | {} | {n} | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.1} ± {:.1} % | {:.1} ± {:.1} % | {:.1} ± {:.1} % |",
+            filter_name(*filter),
+            st[0].0,
+            st[0].1,
+            st[1].0,
+            st[1].1,
+            st[2].0,
+            st[2].1,
+            st[5].0,
+            st[5].1,
+            100.0 * st[3].0,
+            100.0 * st[3].1,
+            100.0 * st[6].0,
+            100.0 * st[6].1,
+            100.0 * st[4].0,
+            100.0 * st[4].1,
+        );
+    }
+    (csv, md)
+}
+
+/// Runs `host-sim bench`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let suite = Suite::load(&args.suite)?;
+    let seeds = match args.seeds.as_str() {
+        "evaluation" => suite.evaluation_seeds.clone(),
+        "tuning" => suite.tuning_seeds.clone(),
+        other => bail!("--seeds `{other}`: use `evaluation` or `tuning`"),
+    };
+    for name in &args.families {
+        if !suite.families.iter().any(|f| &f.name == name) {
+            let known: Vec<&str> = suite.families.iter().map(|f| f.name.as_str()).collect();
+            bail!(
+                "--family `{name}` is not in {} (it has: {})",
+                args.suite.display(),
+                known.join(", ")
+            );
+        }
+    }
+    let families: Vec<&Family> = suite
+        .families
+        .iter()
+        .filter(|f| args.families.is_empty() || args.families.contains(&f.name))
+        .collect();
+    let profile = match &suite.profile {
+        Some(p) => Profile::load(p)?,
+        None => Profile::dji_mini_2(),
+    };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let jobs: Vec<(&Family, u64)> =
+        families.iter().flat_map(|f| seeds.iter().map(move |&s| (*f, s))).collect();
+    let threads = match args.threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    }
+    .clamp(1, jobs.len().max(1));
+
+    let progress = host_sim::progress_bar(&format!("bench {} runs", jobs.len()));
+    progress.set_length(jobs.len() as u64);
+    let next = AtomicUsize::new(0);
+    let results: Mutex<Vec<RunResult>> = Mutex::new(Vec::new());
+    let failures: Mutex<Vec<String>> = Mutex::new(Vec::new());
+    let run_one = |fam: &Family, seed: u64| -> anyhow::Result<Vec<RunResult>> {
+        let scenario = Scenario::load_with(&fam.scenario, seed, &fam.overrides)?;
+        let (sim, links) = host_sim::eval::link::simulate_links(
+            &scenario,
+            &host_sim::Options { threads: 1 },
+            &indicatif::ProgressBar::hidden(),
+            host_sim::DEFAULT_FULL_SCALE_PA,
+        )?;
+        let dir = args.out.join("runs").join(&fam.name).join(format!("seed-{seed}"));
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        let runs = track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s)?;
+        Ok(runs
+            .into_iter()
+            .map(|r| RunResult {
+                family: fam.name.clone(),
+                seed,
+                filter: r.kind,
+                summary: r.summary,
+            })
+            .collect())
+    };
+    std::thread::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(&(fam, seed)) = jobs.get(i) else { break };
+                progress.set_message(format!("{} seed {seed}", fam.name));
+                match run_one(fam, seed) {
+                    Ok(r) => results.lock().expect("no panic holding the lock").extend(r),
+                    Err(e) => failures
+                        .lock()
+                        .expect("no panic holding the lock")
+                        .push(format!("{} seed {seed}: {e:#}", fam.name)),
+                }
+                progress.inc(1);
+            });
+        }
+    });
+    progress.finish_and_clear();
+    let mut results = results.into_inner().expect("workers done");
+    results.sort_by(|a, b| {
+        let fa = suite.families.iter().position(|f| f.name == a.family);
+        let fb = suite.families.iter().position(|f| f.name == b.family);
+        (fa, a.seed, filter_name(a.filter)).cmp(&(fb, b.seed, filter_name(b.filter)))
+    });
+    let label = format!(
+        "{} {} ({})",
+        seeds.len(),
+        args.seeds,
+        seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", ")
+    );
+    let (csv, md) = summary_tables(&suite, &results, &label);
+    let write = |name: &str, text: &str| {
+        let p = args.out.join(name);
+        std::fs::write(&p, text).with_context(|| format!("writing {}", p.display()))
+    };
+    write("runs.csv", &runs_csv(&results))?;
+    write("summary.csv", &csv)?;
+    write("summary.md", &md)?;
+    print!("{md}");
+    let failures = failures.into_inner().expect("workers done");
+    if !failures.is_empty() {
+        bail!("{} of {} runs failed:\n{}", failures.len(), jobs.len(), failures.join("\n"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scenarios() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios")
+    }
+
+    #[test]
+    fn seeds_must_be_disjoint_and_the_error_names_them() {
+        let text = r#"
+tuning_seeds = [1, 2, 3]
+evaluation_seeds = [3, 4, 2]
+[[family]]
+name = "a"
+scenario = "square10-los.toml"
+"#;
+        let e = Suite::parse(text, &scenarios().join("x.toml")).unwrap_err().to_string();
+        assert!(e.contains("must be disjoint; both list 3, 2"), "{e}");
+        let dup = text.replace("[3, 4, 2]", "[4, 4]");
+        let e = Suite::parse(&dup, &scenarios().join("x.toml")).unwrap_err().to_string();
+        assert!(e.contains("evaluation_seeds lists a seed twice"), "{e}");
+    }
+
+    #[test]
+    fn a_bad_family_is_named_before_anything_runs() {
+        let text = r#"
+tuning_seeds = [1]
+evaluation_seeds = [2]
+[airframe]
+wake_spread = 2.0
+[[family]]
+name = "fam"
+scenario = "square10-los.toml"
+"#;
+        let e = format!("{:#}", Suite::parse(text, &scenarios().join("x.toml")).unwrap_err());
+        assert!(e.contains("family `fam`") && e.contains("airframe.wake_spread"), "{e}");
+        let missing = text.replace("wake_spread = 2.0", "").replace("square10-los", "nope");
+        let e = format!("{:#}", Suite::parse(&missing, &scenarios().join("x.toml")).unwrap_err());
+        assert!(e.contains("nope.toml"), "{e}");
+    }
+
+    #[test]
+    fn mean_and_sample_sd() {
+        let (m, sd) = mean_sd(&[1.0, 2.0, 3.0, 4.0]);
+        assert_eq!(m, 2.5);
+        assert!((sd - (5.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert_eq!(mean_sd(&[7.0]), (7.0, 0.0));
+    }
+
+    #[test]
+    fn shipped_suites_load_with_disjoint_seeds_and_ten_evaluation_seeds() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("suites");
+        let default = Suite::load(&dir.join("default.toml")).unwrap();
+        assert!(default.evaluation_seeds.len() >= 10);
+        assert!(default.families.len() >= 14, "{}", default.families.len());
+        let ci = Suite::load(&dir.join("ci.toml")).unwrap();
+        assert!(ci.families.len() <= 2 && ci.evaluation_seeds.len() <= 2);
+    }
+}

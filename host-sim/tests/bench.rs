@@ -1,0 +1,82 @@
+//! `host-sim bench` on the CI-sized suite (`host-sim/suites/ci.toml`): every family × seed ×
+//! filter ran, the summary is the mean ± sd of the per-run rows, nothing from the truth reached
+//! a run's site file, and the truth file holds the drawn airframe.
+use std::path::Path;
+use std::process::Command;
+
+fn column(header: &str, name: &str) -> usize {
+    header.split(',').position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"))
+}
+
+#[test]
+fn ci_suite_runs_every_seed_and_filter_and_summarises_them() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let out = std::env::temp_dir().join(format!("aim-bench-ci-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let status = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("bench")
+        .arg(root.join("suites/ci.toml"))
+        .arg("--out")
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+
+    let runs = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+    let mut lines = runs.lines();
+    let header = lines.next().unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // One family × two evaluation seeds × two filters; the tuning seed never ran.
+    assert_eq!(rows.len(), 4, "{runs}");
+    let seed = column(header, "seed");
+    let mut seeds: Vec<&str> = rows.iter().map(|r| r[seed]).collect();
+    seeds.sort();
+    assert_eq!(seeds, ["2", "2", "3", "3"]);
+    let (mean, filter, avail) =
+        (column(header, "mean_m"), column(header, "filter"), column(header, "availability"));
+    for r in &rows {
+        let m: f64 = r[mean].parse().unwrap();
+        assert!(m.is_finite() && m > 0.0, "{r:?}");
+        let a: f64 = r[avail].parse().unwrap();
+        assert!((0.0..=1.0).contains(&a), "{r:?}");
+    }
+
+    // The summary is the mean and sample sd over seeds of the per-run figures.
+    let summary = std::fs::read_to_string(out.join("summary.csv")).unwrap();
+    let mut sl = summary.lines();
+    let sh = sl.next().unwrap();
+    let srows: Vec<Vec<&str>> = sl.map(|l| l.split(',').collect()).collect();
+    assert_eq!(srows.len(), 2, "{summary}");
+    for s in &srows {
+        let f = s[column(sh, "filter")];
+        let x: Vec<f64> =
+            rows.iter().filter(|r| r[filter] == f).map(|r| r[mean].parse().unwrap()).collect();
+        assert_eq!(x.len(), 2);
+        let m = (x[0] + x[1]) / 2.0;
+        let sd = (x[0] - x[1]).abs() / 2f64.sqrt();
+        let got_m: f64 = s[column(sh, "mean_m")].parse().unwrap();
+        let got_sd: f64 = s[column(sh, "mean_m_sd")].parse().unwrap();
+        assert!((got_m - m).abs() < 2e-4 && (got_sd - sd).abs() < 2e-4, "{s:?} vs {m} ± {sd}");
+        assert_eq!(s[column(sh, "seeds")], "2");
+    }
+    assert!(std::fs::read_to_string(out.join("summary.md"))
+        .unwrap()
+        .contains("| short-leg | aim | 2 |"));
+
+    // Truth stays in truth: the site file names no clock and no airframe key; the truth file
+    // holds the airframe this seed drew.
+    for seed in [2, 3] {
+        let dir = out.join(format!("runs/short-leg/seed-{seed}"));
+        let site = std::fs::read_to_string(dir.join("site.toml")).unwrap();
+        for key in ["clock", "drift", "wake", "thrust", "cg_offset", "jitter", "chipped"] {
+            assert!(!site.contains(key), "site.toml of seed {seed} mentions {key}:\n{site}");
+        }
+        let truth = std::fs::read_to_string(dir.join("truth.toml")).unwrap();
+        assert!(truth.contains("[airframe]") && truth.contains("wake_gain"), "{truth}");
+        assert!(truth.contains("clock_offset_s"), "{truth}");
+    }
+    let a = std::fs::read_to_string(out.join("runs/short-leg/seed-2/truth.toml")).unwrap();
+    let b = std::fs::read_to_string(out.join("runs/short-leg/seed-3/truth.toml")).unwrap();
+    assert_ne!(a, b, "two seeds drew the same airframe");
+    let _ = std::fs::remove_dir_all(&out);
+}
