@@ -14,9 +14,10 @@
 //! 3. **Blade or shaft line.** A rotor's spectrum has lines at multiples of its shaft rate; the
 //!    blade-passing ones (multiples of the blade count) are the strong ones. For a candidate
 //!    `f` with line strengths `L(h)` (whitened level of the line nearest `h·f`, 0 when there is
-//!    none) the multiples `m·f` (m = 2, 3) are tested: when the lines between the multiples of
-//!    `m` (h = m+1 ..= 3m) are weak (median level below [`SHAFT_RATIO`] of the stronger
-//!    neighbouring multiple), `f` was a shaft line and `m·f` is the BPF. Then the sub-multiples
+//!    none) the multiples `m·f` (m = 2, 3) stronger than `f` itself are tested: when the lines
+//!    between the multiples of `m` (h = m+1 ..= 3m) are weak (median level below
+//!    [`SHAFT_RATIO`] of the stronger neighbouring multiple; with none to compare, when `m·f`
+//!    is twice as strong as `f`), `f` was a shaft line and `m·f` is the BPF. Then the sub-multiples
 //!    `f/d` (d = 2, 3): when the lines between `f`'s harmonics are that strong, `f` is a
 //!    harmonic of a lower fundamental: `f/d` if that is in the search range, else the candidate
 //!    is dropped (engines, mains hum, fans whose fundamental lies below the rotor range). The
@@ -31,10 +32,13 @@
 //! 5. **Detection.** A group passes when it has at least [`MIN_LINES`] lines (or all expected,
 //!    if fewer), harmonicity ≥ [`MIN_HARMONICITY`] and quality
 //!    `q = harmonicity · score / (score + QUALITY_SCALE)` ≥ `Config::bpf_min_quality`.
-//! 6. **Continuity.** A passing group is reported only if a passing group of the previous
-//!    analysis lies within `2 bins + Config::bpf_max_rate_per_s · hop · f` of it (rotor speeds
-//!    change at most that fast): a source must hold a comb for two analyses (0.77 s) before it
-//!    is called a rotor. When no group is reported, the `Peaks` output says "no rotor
+//! 6. **Continuity.** A passing group is reported only once it has passed in [`MIN_AGE`]
+//!    consecutive analyses, each within `2 bins + Config::bpf_max_rate_per_s · hop · f` of the
+//!    previous one (rotor speeds change at most that fast) and with its fundamental's amplitude
+//!    within [`STEADY_RATIO`] of the previous one's while it is not yet reported: a source must hold a comb for three
+//!    analyses (1.02 s) before it is called a rotor; notes and vowels rarely do. A comb once
+//!    reported continues at [`HOLD_QUALITY`] of the starting quality (hysteresis), and a
+//!    reported comb missed by one analysis keeps its place in the history for the next. When no group is reported, the `Peaks` output says "no rotor
 //!    signature" and carries no BPF.
 
 use crate::bpf::refine_peak;
@@ -54,25 +58,59 @@ pub const MIN_HARMONICITY: f32 = 0.5;
 pub const QUALITY_SCALE: f32 = 30.0;
 /// Shaft-line test: lines between the blade lines weaker than this fraction of them.
 pub const SHAFT_RATIO: f32 = 0.6;
+/// A comb's second or third harmonic this many times stronger than its first makes it the blade
+/// line ([`Spectrum::blade_line`]).
+pub const BLADE_DOMINANCE: f32 = 1.5;
+/// Consecutive analyses a group must pass before it is reported (3: the comb held steady for
+/// 1.02 s; a sung note or a vowel rarely does, a rotor always).
+pub const MIN_AGE: u8 = 3;
+/// A group continues one of the previous analysis only if its fundamental's amplitude is within
+/// this factor of that one's either way (±6 dB per 0.256 s: a rotor's level is steady, a note
+/// dying away in a hall falls 10 dB per hop at RT60 1.6 s, a vowel starts and stops).
+pub const STEADY_RATIO: f32 = 2.0;
+/// Fraction of `Config::bpf_min_quality` at which a comb already reported continues.
+pub const HOLD_QUALITY: f32 = 0.5;
 /// Most fundamental candidates examined per analysis.
 pub const MAX_CANDIDATES: usize = 8;
 /// Harmonics of a candidate examined for the shaft/blade decision.
 const CHECK_HARMONICS: usize = 12;
 
-/// Groups that passed the detection test in the previous analysis (continuity).
+/// Groups that passed the detection test in the previous analysis, with how many consecutive
+/// analyses each has passed (continuity).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct History {
     hz: [f32; 4],
+    /// Fundamental amplitude of each group (the units of [`crate::Peak::amplitude`]).
+    amplitude: [f32; 4],
+    age: [u8; 4],
+    /// Carried over from an analysis that did not find it.
+    missed: [bool; 4],
     count: usize,
 }
 
 impl History {
     /// No previous analysis.
     pub const fn new() -> Self {
-        Self { hz: [0.0; 4], count: 0 }
+        Self { hz: [0.0; 4], amplitude: [0.0; 4], age: [0; 4], missed: [false; 4], count: 0 }
     }
 
-    fn continues(&self, hz: f32, tolerance_hz: f32) -> bool {
+    /// Consecutive analyses a group at `hz` with fundamental amplitude `amplitude` has passed
+    /// before this one (0: none within `tolerance_hz` that is reported already or whose
+    /// amplitude is within [`STEADY_RATIO`] of it either way).
+    fn age_of(&self, hz: f32, amplitude: f32, tolerance_hz: f32) -> u8 {
+        (0..self.count)
+            .filter(|&i| {
+                let a = self.amplitude[i];
+                libm::fabsf(self.hz[i] - hz) <= tolerance_hz
+                    && (self.age[i] >= MIN_AGE
+                        || (amplitude <= STEADY_RATIO * a && a <= STEADY_RATIO * amplitude))
+            })
+            .map(|i| self.age[i])
+            .max()
+            .unwrap_or(0)
+    }
+
+    fn holds(&self, hz: f32, tolerance_hz: f32) -> bool {
         self.hz[..self.count].iter().any(|&p| libm::fabsf(p - hz) <= tolerance_hz)
     }
 }
@@ -202,13 +240,19 @@ impl Spectrum<'_> {
         // Up: a shaft line whose multiples m carry the comb.
         let mut best: Option<(f32, usize)> = None;
         for m in 2..=3usize {
-            if m as f32 * bin > max_bin || n < 2 * m || l[m] <= 0.0 {
+            // The blade line is the rotor's strongest: a shaft line is weaker than its
+            // multiple.
+            if m as f32 * bin > max_bin || n < 2 * m || l[m] <= l[1] {
                 continue;
             }
-            if let Some(r) = between_ratio(&l[..=n.min(3 * m)], m) {
-                if r < SHAFT_RATIO && best.is_none_or(|(b, _)| r < b) {
-                    best = Some((r, m));
-                }
+            // No line in between to compare with: a multiple twice as strong decides alone.
+            let r = between_ratio(&l[..=n.min(3 * m)], m).unwrap_or(if l[m] >= 2.0 * l[1] {
+                0.0
+            } else {
+                1.0
+            });
+            if r < SHAFT_RATIO && best.is_none_or(|(b, _)| r < b) {
+                best = Some((r, m));
             }
         }
         if let Some((_, m)) = best {
@@ -238,6 +282,28 @@ impl Spectrum<'_> {
             }
         }
         Some(bin)
+    }
+
+    /// The blade line of a comb at `bin`: the rotor's strongest line. When its second or
+    /// third harmonic is [`BLADE_DOMINANCE`] times stronger than the line at `bin` (a shaft
+    /// line: several rotors a few per cent apart fill a shaft comb's gaps, so the
+    /// between-lines test of [`Self::resolve`] cannot tell), that multiple.
+    fn blade_line(&self, bin: f32, max_bin: f32) -> f32 {
+        // Line strengths as magnitudes: the whitening floor differs between the lines' blocks.
+        let s1 = self.line(bin).map_or(0.0, |l| self.mags[l.bin]);
+        let mut best = (bin, BLADE_DOMINANCE * s1);
+        for m in [2.0f32, 3.0] {
+            let c = m * bin;
+            if c > max_bin {
+                break;
+            }
+            if let Some(line) = self.line(c) {
+                if self.mags[line.bin] > best.1 {
+                    best = (refine_peak(self.mags, line.bin).0, self.mags[line.bin]);
+                }
+            }
+        }
+        best.0
     }
 
     /// Scores the comb at `bin` over `harmonics` harmonics.
@@ -312,6 +378,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     for &(k, _) in &cands[..n_cands] {
         let b1 = refine_peak(spec.mags, k).0;
         let Some(b) = spec.resolve(b1, min_bin, max_bin) else { continue };
+        let b = spec.blade_line(b, max_bin);
         if b < min_bin || b > max_bin {
             continue;
         }
@@ -333,11 +400,17 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     let mut next = History::new();
     let best = groups.iter().find(|g| g.passes).map_or(0.0, |g| g.score);
     let tolerance = 1.5 * bin_hz;
+    let rate_hz_per_hz = config.bpf_max_rate_per_s * hop_s;
     for g in groups.iter() {
-        if !g.passes
-            || g.quality < config.bpf_min_quality
-            || g.score < config.peak_relative_score * best
-        {
+        let allowed = 2.0 * bin_hz + rate_hz_per_hz * g.hz;
+        let prior = history.age_of(g.hz, g.amplitude, allowed);
+        // Hysteresis: a comb already reported continues at half the quality that starts one.
+        let min_quality = if prior >= MIN_AGE {
+            HOLD_QUALITY * config.bpf_min_quality
+        } else {
+            config.bpf_min_quality
+        };
+        if !g.passes || g.quality < min_quality || g.score < config.peak_relative_score * best {
             continue;
         }
         let related = next.hz[..next.count].iter().any(|&a| {
@@ -348,10 +421,12 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
         if related || next.count == next.hz.len() {
             continue;
         }
+        let age = prior.saturating_add(1);
         next.hz[next.count] = g.hz;
+        next.amplitude[next.count] = g.amplitude;
+        next.age[next.count] = age;
         next.count += 1;
-        let allowed = 2.0 * bin_hz + config.bpf_max_rate_per_s * hop_s * g.hz;
-        if history.continues(g.hz, allowed) && (out.count as usize) < out.peaks.len() {
+        if age >= MIN_AGE && (out.count as usize) < out.peaks.len() {
             out.peaks[out.count as usize] = Peak {
                 hz: g.hz,
                 amplitude: g.amplitude,
@@ -361,6 +436,21 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
             out.count += 1;
         }
     }
+    // A reported comb missed in one analysis (a wind gust, a reflection's notch) keeps its
+    // place for the next.
+    for i in 0..history.count {
+        let (hz, age) = (history.hz[i], history.age[i]);
+        let tol = 2.0 * bin_hz + rate_hz_per_hz * hz;
+        if age < MIN_AGE || history.missed[i] || next.count == next.hz.len() || next.holds(hz, tol)
+        {
+            continue;
+        }
+        next.hz[next.count] = hz;
+        next.amplitude[next.count] = history.amplitude[i];
+        next.age[next.count] = age;
+        next.missed[next.count] = true;
+        next.count += 1;
+    }
     *history = next;
     out.rotor = out.count > 0;
     out.bpf_hz = out.peaks[0].hz;
@@ -369,7 +459,8 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
 
 /// The median, over the lines `l[j]` with `j > m` not a multiple of `m`, of their level relative to
 /// the stronger of the neighbouring multiples of `m` (`l[0]` unused; a missing line is 0; a
-/// ratio is capped at 2). `None` when no line has a neighbour to compare with.
+/// ratio is capped at 2; a line whose neighbouring multiples are both missing is left out).
+/// `None` when no line has a neighbour to compare with.
 fn between_ratio(l: &[f32], m: usize) -> Option<f32> {
     let n = l.len() - 1;
     let mut r = [0.0f32; 24];
@@ -383,11 +474,10 @@ fn between_ratio(l: &[f32], m: usize) -> Option<f32> {
         let below = if j >= m { l[j / m * m] } else { 0.0 };
         let above = if (j / m + 1) * m <= n { l[(j / m + 1) * m] } else { 0.0 };
         let reference = below.max(above);
+        // A missing reference line says nothing: several rotors a few per cent apart and a
+        // speed wandering within the window smear a comb's upper lines out of the search.
         if reference > 0.0 {
             r[k] = (l[j] / reference).min(2.0);
-            k += 1;
-        } else if l[j] > 0.0 {
-            r[k] = 2.0;
             k += 1;
         }
     }

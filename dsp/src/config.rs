@@ -31,7 +31,9 @@ pub struct Config {
     pub average_blocks: u32,
     /// Speed of sound, m/s. Default 343 (20 °C).
     pub speed_of_sound_m_s: f32,
-    /// Lowest blade-passing frequency searched, Hz. Default 100.
+    /// Lowest blade-passing frequency searched, Hz. Default 140 (indoor drones: 150–700 Hz;
+    /// desk and ceiling fans, whose steady five-blade combs are rotors too, 50–120 Hz; lower
+    /// it for large propellers).
     pub bpf_min_hz: f32,
     /// Highest blade-passing frequency searched, Hz. Default 1000.
     pub bpf_max_hz: f32,
@@ -47,7 +49,8 @@ pub struct Config {
     /// Default 0.35.
     pub bpf_min_quality: f32,
     /// Fastest relative change of a rotor's BPF between analyses that still continues a group,
-    /// per second. Default 0.2 (20 %/s: 5 % per 0.256 s hop).
+    /// per second. Default 0.1 (10 %/s: 2.6 % per 0.256 s hop, under a semitone's 6 %: a
+    /// melody's steps do not continue a group).
     pub bpf_max_rate_per_s: f32,
     /// Blocks between two `Health` outputs. Default 48 (about 1 s at 48 kHz / 1024).
     pub health_interval_blocks: u32,
@@ -76,13 +79,13 @@ impl Config {
             band_high_hz: 6000.0,
             average_blocks: 8,
             speed_of_sound_m_s: 343.0,
-            bpf_min_hz: 100.0,
+            bpf_min_hz: 140.0,
             bpf_max_hz: 1000.0,
             harmonics: 8,
             peak_floor_ratio: 5.0,
             peak_relative_score: 0.1,
             bpf_min_quality: 0.35,
-            bpf_max_rate_per_s: 0.2,
+            bpf_max_rate_per_s: 0.1,
             health_interval_blocks: 48,
         }
     }

@@ -9,7 +9,9 @@
 //! 65 dB (direct, at the array) in both halls over the 55 dB background.
 use anyhow::bail;
 
-use host_sim::bpf_bench::{airframes, drone_case, negative_case, Score, BACKGROUNDS_DB, HALLS};
+use host_sim::bpf_bench::{
+    airframes, drone_case, negative_case, Score, BACKGROUNDS_DB, HALLS, SETTLING_FRAMES,
+};
 use host_sim::tonal::Negative;
 
 /// Arguments of `host-sim bpf-bench`.
@@ -38,7 +40,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--duration must be 2–120 s, not {}", args.duration);
     }
     println!(
-        "drones (seeds {seeds:?}, {} s clips, frames after the first of each clip)",
+        "drones (seeds {seeds:?}, {} s clips, frames after the first {SETTLING_FRAMES} of each clip)",
         args.duration
     );
     println!(
