@@ -60,7 +60,7 @@ pub const QUALITY_SCALE: f32 = 30.0;
 pub const SHAFT_RATIO: f32 = 0.6;
 /// A comb's second or third harmonic this many times stronger than its first makes it the blade
 /// line ([`Spectrum::blade_line`]).
-pub const BLADE_DOMINANCE: f32 = 1.5;
+pub const BLADE_DOMINANCE: f32 = 2.5;
 /// Consecutive analyses a group must pass before it is reported (3: the comb held steady for
 /// 1.02 s; a sung note or a vowel rarely does, a rotor always).
 pub const MIN_AGE: u8 = 3;
