@@ -25,7 +25,10 @@ pub struct Doa {
     pub zenith_rad: f32,
     /// Weighted RMS misfit of the pair delays to the plane-wave model, samples.
     pub residual: f32,
-    /// Mean pair quality, 0 (no coherent peak) to 1 (one clean peak in every pair).
+    /// Mean pair quality times the share of it the robust direction fit kept
+    /// ([`crate::doa::Direction::kept_weight`]): 0 (no coherent peak) to 1 (one clean peak in
+    /// every pair, all pairs on one plane wave). Low when pairs lock onto reflections: a
+    /// reverberation- or obstruction-dominated frame.
     pub quality: f32,
     /// Pairs with non-zero weight in the fit.
     pub pairs_used: u8,

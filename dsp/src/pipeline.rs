@@ -456,7 +456,10 @@ impl Pipeline {
         }
         let delays = &self.delays[..self.pair_count];
         let fit = doa::fit(&self.pairs[..self.pair_count], delays, self.samples_per_metre)?;
-        let quality = delays.iter().map(|d| d.quality()).sum::<f32>() / self.pair_count as f32;
+        // Mean pair quality, times the share of it the robust fit kept: low when the pairs do
+        // not agree on one plane wave (reflections, obstruction).
+        let quality = delays.iter().map(|d| d.quality()).sum::<f32>() / self.pair_count as f32
+            * fit.kept_weight;
         Some(Doa {
             sample_index: self.average_start,
             span_samples: self.config.average_blocks * self.config.block_len as u32,

@@ -31,6 +31,7 @@ pub mod obstacle;
 pub mod path;
 pub mod profile;
 pub mod propagation;
+pub mod reverb;
 pub mod room;
 pub mod scenario;
 pub mod site;
@@ -254,9 +255,28 @@ pub fn simulate_to(
     let c = scenario.air.speed_of_sound_mps();
     let n_out = (scenario.duration_s * fs).round() as usize;
 
+    // The room's late tail (one response per microphone, arrays in order), if it has one.
+    let tail = scenario.room.as_ref().filter(|r| r.late_tail).map(|r| {
+        let air = if scenario.render.absorption {
+            scenario.air.absorption_quadratic_coefficient()
+        } else {
+            0.0
+        };
+        let arrays: Vec<(Vec<Vector3<f64>>, u64)> = scenario
+            .arrays
+            .iter()
+            .map(|a| {
+                let pos = (0..a.positions.len()).map(|m| a.mic_position(m)).collect();
+                (pos, sub_seed(scenario.seed, 400 + a.id as u64))
+            })
+            .collect();
+        reverb::LateTail::new(r, c, air, fs, &arrays, OUTPUT_BLOCK)
+    });
+    let tail_reach_s = tail.as_ref().map_or(0.0, |t| t.reach_s(fs));
+
     // Time span the sources must cover: every array's recording, less the longest path delay.
     let max_path_m = longest_path_m(scenario);
-    let pre_roll = max_path_m / c + 0.05;
+    let pre_roll = (max_path_m / c).max(tail_reach_s) + 0.05;
     let offsets = scenario.arrays.iter().map(|a| a.clock.offset_s);
     let t_first = offsets.clone().fold(0.0f64, f64::min) - pre_roll;
     let t_last = offsets.fold(0.0f64, f64::max) + scenario.duration_s * 1.001 + 0.05;
@@ -384,7 +404,7 @@ pub fn simulate_to(
 
     // The longest delay any path can have, s: the bound of `longest_path_m` over where the
     // drone really flew, with margin. A read before it would be an error, never a silent zero.
-    let max_delay_s = 1.25 * longest_path_bound_m(scenario, &log) / c + 0.05;
+    let max_delay_s = (1.25 * longest_path_bound_m(scenario, &log) / c).max(tail_reach_s) + 0.05;
     let max_extra_s = jobs.iter().map(|j| j.receiver.extra_delay_s.abs()).fold(0.0, f64::max);
 
     progress.set_length((jobs.len() * n_out) as u64);
@@ -416,6 +436,20 @@ pub fn simulate_to(
             };
             let rendered = propagation::render_window(m, view, traj.as_ref(), p, &rx, block, out);
             if let Err(e) = rendered {
+                *outside.lock().expect("no panics while held") = Some(e);
+            }
+        }
+        if let Some(tail) = &tail {
+            // The sources the room reverberates: all but the straight-only rotor paths and
+            // the diffuse field's plane waves.
+            let sources: Vec<&propagation::SourceView> = trajectories
+                .iter()
+                .zip(views)
+                .filter(|((_, r), _)| matches!(r, Reach::All | Reach::Indirect))
+                .map(|(_, v)| v)
+                .collect();
+            let q0 = ((rx.t0_s - t_first) * fs).round() as isize;
+            if let Err(e) = tail.add(i, &sources, q0, out) {
                 *outside.lock().expect("no panics while held") = Some(e);
             }
         }

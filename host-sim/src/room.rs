@@ -4,7 +4,11 @@
 //! An image source of order k is the source mirrored k times in the walls; the straight line
 //! from an image to a microphone, folded back into the room, is a reflected path. Walls reflect
 //! pressure with `β = sqrt(1 − α)` for energy absorption α, the same at all frequencies.
+//! Reflections above the simulated order can be added statistically (`reverb`).
 use nalgebra::Vector3;
+
+/// Highest reflection order a scenario may ask for (order 12 has 2625 image sources).
+pub const MAX_REFLECTION_ORDER: u32 = 12;
 
 /// A shoebox room.
 #[derive(Clone, Debug, PartialEq)]
@@ -13,8 +17,10 @@ pub struct Room {
     pub size_m: [f64; 3],
     /// Energy absorption coefficients of the walls x = 0, x = Lx, y = 0, y = Ly, floor, ceiling.
     pub absorption: [f64; 6],
-    /// Highest reflection order simulated (0: direct path only).
+    /// Highest reflection order simulated exactly (0: direct path only).
     pub reflection_order: u32,
+    /// Whether the statistical late tail (`reverb`) adds the reflections above that order.
+    pub late_tail: bool,
 }
 
 /// One image source: `p' = sign ∘ p + offset`.
@@ -60,9 +66,9 @@ impl Room {
         if self.absorption.iter().any(|&a| !(0.0..=1.0).contains(&a)) {
             return Err(format!("room.absorption must lie in 0..=1, got {:?}", self.absorption));
         }
-        if self.reflection_order > 6 {
+        if self.reflection_order > MAX_REFLECTION_ORDER {
             return Err(format!(
-                "room.reflection_order {} is more than the simulator's limit of 6",
+                "room.reflection_order {} is more than the simulator's limit of {MAX_REFLECTION_ORDER}",
                 self.reflection_order
             ));
         }
@@ -189,7 +195,12 @@ mod tests {
     use super::*;
 
     fn room(order: u32) -> Room {
-        Room { size_m: [5.0, 4.0, 3.0], absorption: [0.19; 6], reflection_order: order }
+        Room {
+            size_m: [5.0, 4.0, 3.0],
+            absorption: [0.19; 6],
+            reflection_order: order,
+            late_tail: false,
+        }
     }
 
     #[test]

@@ -40,7 +40,10 @@
 //!             along-track: nose first, turning at each corner (`path` module docs) with
 //!             yaw_rate_dps [90] (peak yaw rate) and yaw_accel_dps2 [180] (peak yaw acceleration)
 //! [room]      size_m = [Lx, Ly, Lz], absorption = α or [x0, x1, y0, y1, floor, ceiling] [0.2],
-//!             reflection_order [1]          (no [room]: free field)
+//!             reflection_order [1] (0..=12), rt60_s (instead of absorption: all walls alike,
+//!             absorbing so that the image model's T30 is rt60_s, `reverb`), late_tail [true with rt60_s, else false] (the
+//!             reflections above reflection_order as a statistical tail, `reverb`)
+//!             (no [room]: free field)
 //! [[obstacle]] name, min = [x, y, z], max = [x, y, z], loss_db [20]
 //! [[noise]]   position = [x, y, z], centre_hz, bandwidth_hz [100], spl_db, distance_m [1]
 //! [diffuse_noise] spl_db, low_hz [100], high_hz [8000], directions [32]
@@ -194,6 +197,8 @@ struct FileRoom {
     absorption: Option<Absorption>,
     #[serde(default = "d_one")]
     reflection_order: u32,
+    rt60_s: Option<f64>,
+    late_tail: Option<bool>,
 }
 
 #[derive(Deserialize)]
@@ -704,13 +709,27 @@ impl Scenario {
 
         let room = match f.room {
             Some(r) => {
-                let absorption = match r.absorption {
-                    None => [0.2; 6],
-                    Some(Absorption::All(a)) => [a; 6],
-                    Some(Absorption::Each(a)) => a,
+                let absorption = match (r.absorption, r.rt60_s) {
+                    (Some(_), Some(_)) => {
+                        return Err("room: give absorption or rt60_s, not both".into());
+                    }
+                    (None, Some(t)) if !(t.is_finite() && (0.05..=10.0).contains(&t)) => {
+                        return Err(format!("room.rt60_s {t} must lie in 0.05..=10 s"));
+                    }
+                    (None, Some(t)) => {
+                        let c = air.speed_of_sound_mps();
+                        [crate::reverb::absorption_for_t30(r.size_m, t, c); 6]
+                    }
+                    (None, None) => [0.2; 6],
+                    (Some(Absorption::All(a)), None) => [a; 6],
+                    (Some(Absorption::Each(a)), None) => a,
                 };
-                let room =
-                    Room { size_m: r.size_m, absorption, reflection_order: r.reflection_order };
+                let room = Room {
+                    size_m: r.size_m,
+                    absorption,
+                    reflection_order: r.reflection_order,
+                    late_tail: r.late_tail.unwrap_or(r.rt60_s.is_some()),
+                };
                 room.validate()?;
                 Some(room)
             }
@@ -1044,7 +1063,8 @@ impl Scenario {
         // with the renderer's margin.
         let pre_roll = self.room.as_ref().map_or(0.5, |r| {
             let diagonal = r.size_m.iter().map(|l| l * l).sum::<f64>().sqrt();
-            diagonal * (2.0 * f64::from(r.reflection_order) + 2.0) / 343.0 + 0.05
+            let tail = if r.late_tail { crate::reverb::tail_reach_estimate_s(r) } else { 0.0 };
+            (diagonal * (2.0 * f64::from(r.reflection_order) + 2.0) / 343.0).max(tail) + 0.05
         });
         let block_s = crate::OUTPUT_BLOCK as f64 / fs;
         let window = (block_s + spread + 1.25 * pre_roll + 0.1) * fs;
@@ -1065,7 +1085,14 @@ impl Scenario {
         // The flight log (~400 B per control step) and the truth (~300 B per row).
         let span = self.duration_s + spread + pre_roll;
         let log = span * self.render.control_rate_hz * 400.0 + span * self.truth_rate_hz * 300.0;
-        (samples * 4.0 + log) as u64
+        // The late tail's spectra: per microphone an FFT of the output block plus the tail
+        // (complex f32), and the convolution's buffer per worker (counted once per microphone).
+        let tail = self.room.as_ref().filter(|r| r.late_tail).map_or(0.0, |r| {
+            let len = crate::reverb::tail_reach_estimate_s(r) * fs;
+            let n_fft = ((crate::OUTPUT_BLOCK as f64 + len) as usize).next_power_of_two();
+            (n_fft * 8 * 2 * mics) as f64
+        });
+        (samples * 4.0 + log + tail) as u64
     }
 
     /// Memory of every microphone's whole recording (f32), bytes.

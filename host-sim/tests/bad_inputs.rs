@@ -67,6 +67,9 @@ fn every_scenario_input_of_the_issue_is_refused_by_key() {
         (edit("sample_rate_hz = 48000", "sample_rate_hz = 44100"), "on-chip pipeline refuses this array at 44100 Hz"),
         // A microphone fault on a microphone the array does not have.
         (edit("position = [3.0, 0.5, 0.05]", "position = [3.0, 0.5, 0.05]\ndead_mics = [6]"), "name microphone 6, but it has 6"),
+        (edit("size_m = [10.0, 10.0, 4.0]", "size_m = [10.0, 10.0, 4.0]\nrt60_s = 0.8\nabsorption = 0.2"), "give absorption or rt60_s, not both"),
+        (edit("size_m = [10.0, 10.0, 4.0]", "size_m = [10.0, 10.0, 4.0]\nrt60_s = -1.0"), "room.rt60_s -1 must lie"),
+        (edit("size_m = [10.0, 10.0, 4.0]", "size_m = [10.0, 10.0, 4.0]\nreflection_order = 13"), "room.reflection_order 13"),
         (
             edit("position = [3.0, 0.5, 0.05]", "position = [3.0, 0.5, 0.05]\npositions = [[0.0, 0.0], [0.5, 0.0], [0.0, 0.5], [0.5, 0.5]]"),
             "on-chip pipeline refuses",

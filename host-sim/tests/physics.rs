@@ -143,6 +143,7 @@ fn image_source_arrivals_match_the_analytic_ones() {
         size_m: [5.0, 4.0, 3.0],
         absorption: [0.1, 0.19, 0.3, 0.4, 0.05, 0.6],
         reflection_order: 1,
+        late_tail: false,
     };
     let medium = Medium {
         c_mps: C,

@@ -180,8 +180,8 @@ mod tests {
         let mut rng = crate::testutil::Rng::new(seed);
         let x0 = at(0.0).map(|x| x * start_range);
         let mut ekf = Ekf::new(
-            [x0[0], x0[1], x0[2], 0.0, 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[1.0, 1.0, 0.25, 4.0, 4.0, 0.01, 1e-6, 0.05f64.powi(2)]),
+            [x0[0], x0[1], x0[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
+            Mat::diagonal(&[1.0, 1.0, 0.25, 4.0, 4.0, 0.01, 1e-6, 0.05f64.powi(2), 1e-6]),
         );
         let sigma_b = 0.5f64.to_radians();
         let dt = 0.1;

@@ -11,7 +11,9 @@
 //! - [`link`], [`intake`], [`session`]: link bytes → frames → inputs in time order on one time
 //!   base → the tracker, the one path of `aim track`, `aim replay` and `host-sim fly`;
 //! - [`status`]: per-array link and board counters, the status line of `aim track`;
-//! - [`profile`], [`site`]: drone profiles and site files (TOML).
+//! - [`serve`]: the live map in the browser (`--serve`);
+//! - [`profile`], [`site`]: drone profiles and site files (TOML);
+//! - [`output`]: fixes to other systems (MAVLink to an autopilot, in the site's NED frame).
 #![warn(missing_docs)]
 
 pub mod config;
@@ -26,7 +28,9 @@ pub mod linalg;
 pub mod link;
 pub mod motion;
 pub mod observation;
+pub mod output;
 pub mod profile;
+pub mod serve;
 pub mod session;
 pub mod site;
 pub mod status;

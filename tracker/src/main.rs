@@ -21,6 +21,8 @@ enum Command {
     Replay(cmd::replay::Args),
     /// Track live from a serial port and print one JSON fix per line.
     Track(cmd::track::Args),
+    /// Publish an array's frames from its serial port on the Zenoh bus.
+    Gateway(cmd::gateway::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -29,6 +31,7 @@ fn main() -> std::process::ExitCode {
         Command::Frames(args) => cmd::frames::run(args),
         Command::Replay(args) => cmd::replay::run(args),
         Command::Track(args) => cmd::track::run(args),
+        Command::Gateway(args) => cmd::gateway::run(args),
     };
     aim_tracker::exit::exit_code(result)
 }

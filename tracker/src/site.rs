@@ -23,6 +23,10 @@
 //! # or `size = [Lx, Ly, Lz]` for the shoebox [0, Lx] × [0, Ly] × [0, Lz]
 //!
 //! [[obstacle]]                 # optional, informative: name, min, max, loss_db
+//!
+//! [origin]                     # optional: the local NED frame of `--mavlink`
+//! position = [0.0, 0.0, 0.0]   # (see crate::output::ned)
+//! x_axis_from_north_deg = 90.0
 //! ```
 //! This is a superset of the `site.toml` that `host-sim simulate` writes. Every number is
 //! range-checked at its line: positions within [`MAX_COORDINATE_M`] and inside the room (with
@@ -137,6 +141,9 @@ struct SiteFile {
     #[serde(default)]
     #[allow(dead_code)]
     obstacle: Vec<toml::Value>,
+    /// The NED origin for outputs that need one: read by [`crate::output::ned::Origin`].
+    #[allow(dead_code)]
+    origin: Option<toml::Value>,
 }
 
 #[derive(Deserialize)]

@@ -24,3 +24,28 @@ impl Rng {
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     }
 }
+
+/// A DoA frame of a drone at `pos` (site ENU, m) seen at `t` (s) by an array at the origin:
+/// its true angles with 0.5° of Gaussian noise each, in line of sight, quality 0.5.
+pub fn doa(t: f64, pos: [f64; 3], rng: &mut Rng) -> crate::doa::DoaState {
+    let (az, zen) = crate::observation::angles_of(pos);
+    let noise = 0.5f64.to_radians();
+    crate::doa::DoaState {
+        t,
+        azimuth_rad: az + noise * rng.normal(),
+        zenith_rad: zen + noise * rng.normal(),
+        azimuth_rate: 0.0,
+        zenith_rate: 0.0,
+        angular_rate: 0.0,
+        angular_rate_sigma: 0.0,
+        erratic_rad: 0.0,
+        fit_residual: 0.2,
+        quality: 0.5,
+        inlier_fraction: 1.0,
+        inliers: 6,
+        noise_rad: 0.01,
+        time_spread_s: 0.5,
+        los: true,
+        moving: false,
+    }
+}

@@ -22,6 +22,9 @@ use crate::wake::{HoverPattern, WakeConfig, WakeSpeed, WakeSplit};
 /// has not settled, m/s.
 const UNSETTLED_SPEED_SIGMA_MPS: f64 = 1.0;
 
+/// One value and its standard deviation per spectrum frame (a speed in m/s, or a split).
+type FrameCues = Vec<(f64, f64)>;
+
 /// One BPF frame as the pipeline keeps it.
 #[derive(Clone, Debug, PartialEq)]
 struct BpfFrame {
@@ -80,6 +83,15 @@ pub struct TrackerConfig {
     /// counts as a split at hover thrust (a yaw keeps the total thrust; the DSP's estimates
     /// of a changing split, smeared over a 0.5 s span, do not).
     pub yaw_split_hz: f64,
+    /// Learn the wake-split gain online when the profile has no wake coefficient: every
+    /// spectrum frame's split change of a horizontal leg goes to the `aim` filter, whose EKFs
+    /// carry the gain as a state ([`crate::filter::ekf::WAKE_GAIN`]). Off: without a profile
+    /// coefficient the split is not used (the range rests on the Doppler and the thrust).
+    /// Off by default: it measured worse on the tuning seeds (15 families, mean 3.45 m on
+    /// against 3.36 m off; BENCHMARKS.md, issue 12 session 6): within one leg a hypothesis
+    /// at any range learns the gain that fits its own speed, and the gain of a wrong first
+    /// leg then holds the later legs at the wrong range.
+    pub online_wake_gain: bool,
 }
 
 impl Default for TrackerConfig {
@@ -100,6 +112,7 @@ impl Default for TrackerConfig {
             excess_window_s: 0.8,
             split_memory_s: 0.5,
             yaw_split_hz: 6.0,
+            online_wake_gain: false,
         }
     }
 }
@@ -119,6 +132,12 @@ pub struct Fix {
     pub velocity: [f64; 3],
     /// Standard deviation of each position coordinate, m.
     pub sigma: [f64; 3],
+    /// Covariance of the position, world ENU m² (row-major 3×3; its diagonal is `sigma`²).
+    pub covariance: [[f64; 3]; 3],
+    /// How many times the tracker had restarted its track (after a silence of its array, or a
+    /// reboot's new epoch) before this fix: fixes with different counts belong to different
+    /// tracks (MAVLink's `reset_counter`).
+    pub resets: u32,
     /// Motion class.
     pub motion: MotionClass,
     /// Line-of-sight decision.
@@ -184,6 +203,9 @@ pub struct Tracker {
     wake: Option<WakeSpeed>,
     /// Cruise speed from the front/rear split (None without a wake coefficient).
     split: Option<WakeSplit>,
+    /// The front/rear split at unit gain, for the online wake gain (None with a profile
+    /// coefficient or with [`TrackerConfig::online_wake_gain`] off).
+    split_online: Option<WakeSplit>,
     /// Time of the newest spectrum frame given to `wake` and `split`, s.
     wake_last_t: f64,
     /// The hover BPF group pattern (static imbalance), calibrated while still.
@@ -206,6 +228,8 @@ pub struct Tracker {
     hover_run_s: f64,
     latest_input_t: f64,
     diagnostics: VecDeque<Diagnostics>,
+    /// Restarts of the track so far ([`Fix::resets`]).
+    resets: u32,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -252,6 +276,7 @@ impl Tracker {
             speed: SpeedIntegrator::new(&profile),
             wake: WakeSpeed::new(WakeConfig::default(), profile.wake_excess_per_mps()),
             split: WakeSplit::new(WakeConfig::split(), profile.wake_split_per_mps()),
+            split_online: Self::online_split(&profile, &config),
             wake_last_t: f64::NEG_INFINITY,
             pattern: HoverPattern::default(),
             pattern_last_t: f64::NEG_INFINITY,
@@ -271,6 +296,7 @@ impl Tracker {
             hover_run_s: 0.0,
             latest_input_t: f64::NEG_INFINITY,
             diagnostics: VecDeque::new(),
+            resets: 0,
         })
     }
 
@@ -359,6 +385,7 @@ impl Tracker {
         self.speed = SpeedIntegrator::new(&self.profile);
         self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
         self.split = WakeSplit::new(WakeConfig::split(), self.profile.wake_split_per_mps());
+        self.split_online = Self::online_split(&self.profile, &self.config);
         self.wake_last_t = f64::NEG_INFINITY;
         self.pattern_last_t = f64::NEG_INFINITY;
         self.centre = FrameCentre::default();
@@ -367,6 +394,7 @@ impl Tracker {
         self.spectra.clear();
         self.last_output = None;
         self.hover_run_s = 0.0;
+        self.resets = self.resets.wrapping_add(1);
     }
 
     /// Emits the fixes of every output instant up to and including the newest input.
@@ -421,28 +449,40 @@ impl Tracker {
     /// and whether a cue has settled. The leg's speed in `speed` becomes the inverse-variance
     /// mean of the cues' leg estimates; before either has one, the integrated speed stays with
     /// a σ of at least [`UNSETTLED_SPEED_SIGMA_MPS`].
+    /// The unit-gain split estimator of the online wake gain, when the tracker learns it.
+    fn online_split(profile: &Profile, config: &TrackerConfig) -> Option<WakeSplit> {
+        (config.online_wake_gain && profile.wake_split_per_mps() <= 0.0)
+            .then(|| WakeSplit::new(WakeConfig::split(), 1.0))
+            .flatten()
+    }
+
     fn wake_speeds(
         &mut self,
         t: f64,
         motion: MotionClass,
         speed: &mut AcousticSpeed,
-    ) -> (Vec<(f64, f64)>, bool) {
+    ) -> (FrameCues, bool, Option<FrameCues>) {
         let since = std::mem::replace(&mut self.wake_last_t, t);
         let leg = motion == MotionClass::Horizontal && self.calibration.is_calibrated();
         if !leg {
             self.wake.iter_mut().for_each(WakeSpeed::reset);
             self.split.iter_mut().for_each(WakeSplit::reset);
-            return (Vec::new(), false);
+            self.split_online.iter_mut().for_each(WakeSplit::reset);
+            return (Vec::new(), false, None);
         }
         let hover = self.calibration.hover_sum_sq();
         let hover_split = self.pattern.split();
         self.split.iter_mut().for_each(|w| w.set_hover_split(hover_split));
+        self.split_online.iter_mut().for_each(|w| w.set_hover_split(hover_split));
         let mut frames = Vec::new();
+        let mut splits = Vec::new();
         // A yaw split says nothing of the wake.
         for f in self.spectra.iter().filter(|f| f.t > since && f.t <= t && !f.yaw_split) {
             frames.extend(self.wake.as_mut().and_then(|w| w.push(f.t, f.sum_sq / hover - 1.0)));
             frames.extend(self.split.as_mut().and_then(|w| w.push(f.t, &f.hz)));
+            splits.extend(self.split_online.as_mut().and_then(|w| w.push(f.t, &f.hz)));
         }
+        let online = self.split_online.as_ref().filter(|w| w.settled()).map(|_| splits);
         let settled = self.wake.as_ref().is_some_and(WakeSpeed::settled)
             || self.split.as_ref().is_some_and(WakeSplit::settled);
         let estimates = [
@@ -462,7 +502,7 @@ impl Tracker {
             // a 1 m/s² acceleration (0.5 %).
             speed.horizontal_sigma = speed.horizontal_sigma.max(UNSETTLED_SPEED_SIGMA_MPS);
         }
-        (frames, settled)
+        (frames, settled, online)
     }
 
     fn add_spectrum(&mut self, s: &Spectrum) {
@@ -582,7 +622,7 @@ impl Tracker {
         }
         self.pattern_last_t = self.spectra.back().map_or(self.pattern_last_t, |f| f.t.min(t));
         let mut speed = self.speed.update(dt, motion, mean_sum_sq, &self.calibration);
-        let (cruise_speeds, wake_settled) = self.wake_speeds(t, motion, &mut speed);
+        let (cruise_speeds, wake_settled, wake_splits) = self.wake_speeds(t, motion, &mut speed);
         let los = doa.is_some_and(|d| d.los);
         // Every BPF frame once, as its centre frequency (a yaw's split is no wake: left out).
         let since = std::mem::replace(&mut self.doppler_last_t, t);
@@ -612,6 +652,7 @@ impl Tracker {
             speed,
             room: self.site.room,
             cruise_speeds: wake_settled.then_some(cruise_speeds),
+            wake_splits,
             doppler,
             speed_of_sound_mps: DEFAULT_SPEED_OF_SOUND_MPS,
         };
@@ -627,6 +668,8 @@ impl Tracker {
                 pc[(1, 1)].max(0.0).sqrt(),
                 pc[(2, 2)].max(0.0).sqrt(),
             ],
+            covariance: std::array::from_fn(|i| std::array::from_fn(|j| pc[(i, j)])),
+            resets: self.resets,
             motion,
             los,
         })

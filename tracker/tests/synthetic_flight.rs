@@ -267,6 +267,7 @@ fn both_filters_are_always_available_and_within_their_measured_errors() {
     // filter has a speed cue from the split: measured aim 6.42 m, paper 11.81 m after the merge
     // of `doppler` and `paperkf` (with the profile carrying the flown wake, as before: aim
     // 2.29 m, paper 0.84 m). Neither is a target; they catch a regression that doubles them.
+    // Issue 12 session 6 (the thrust-integrated speed no longer fed to `aim`): aim 2.37 m.
     assert!(ep < 15.0, "paper {ep:.2} m");
-    assert!(ea < 8.0, "aim {ea:.2} m");
+    assert!(ea < 4.0, "aim {ea:.2} m");
 }

@@ -178,6 +178,8 @@ mod tests {
                     position: [t, if k >= 17 { 3.0 } else { 0.5 }, 2.0],
                     velocity: [1.0, 0.0, 0.0],
                     sigma: [0.1; 3],
+                    covariance: [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.01]],
+                    resets: 0,
                     motion: if k < 6 { MotionClass::Hover } else { MotionClass::Horizontal },
                     los: true,
                 }

@@ -337,6 +337,8 @@ mod tests {
             position: [0.0; 3],
             velocity: [0.0; 3],
             sigma: [0.0; 3],
+            covariance: [[0.0; 3]; 3],
+            resets: 0,
             motion: aim_tracker::motion::MotionClass::Hover,
             los,
             available: t,
@@ -344,6 +346,96 @@ mod tests {
         let fixes =
             [fix(0.0, true), fix(0.1, false), fix(0.2, false), fix(0.3, true), fix(0.4, false)];
         assert_eq!(nlos_spans(&fixes), vec![(0.0, 0.2), (0.3, 0.4)]);
+    }
+
+    /// One plot of a short flight past an obstacle, rendered: the SVG carries the titles, the
+    /// axis names with their units, tick numbers on every axis and every legend entry as text
+    /// (drawn with the bundled font: no system font is looked up); the PNG is a real image of
+    /// the stated size.
+    #[test]
+    fn the_plot_has_titles_axes_ticks_and_legends() {
+        let site: Site = toml::from_str(
+            "sample_rate_hz = 48000\nspeed_of_sound_mps = 343.2\n[[array]]\nid = 1\n\
+             geometry = \"respeaker-6mic\"\nposition = [5.0, 1.0, 0.1]\nyaw_deg = 0.0\n\
+             [room]\nsize = [10.0, 8.0, 4.0]\n[[obstacle]]\nname = \"shelf\"\n\
+             min = [4.0, 4.0, 0.0]\nmax = [6.0, 4.5, 2.0]\nloss_db = 15.0\n",
+        )
+        .unwrap();
+        let row = |t: f64| crate::truth::TruthRow {
+            t_s: t,
+            position: [2.0 + 0.5 * t, 6.0, 2.0],
+            velocity: [0.5, 0.0, 0.0],
+            acceleration: [0.0; 3],
+            yaw_rad: 0.0,
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            rotor_hz: vec![],
+            los: vec![true],
+        };
+        let truth = Truth {
+            blades: 2,
+            array_ids: vec![1],
+            clocks: vec![],
+            airframe: None,
+            rows: (0..=100).map(|k| row(k as f64 * 0.1)).collect(),
+        };
+        // Fixes 0.4 m off in y; NLoS from 4 s to 6 s.
+        let fixes: Vec<Fix> = (0..=100)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                Fix {
+                    t,
+                    available: t + 0.3,
+                    position: [2.0 + 0.5 * t, 6.4, 2.0],
+                    velocity: [0.5, 0.0, 0.0],
+                    sigma: [0.3; 3],
+                    covariance: [[0.09, 0.0, 0.0], [0.0, 0.09, 0.0], [0.0, 0.0, 0.09]],
+                    resets: 0,
+                    motion: aim_tracker::motion::MotionClass::Horizontal,
+                    los: !(40..60).contains(&k),
+                }
+            })
+            .collect();
+        let dir = std::env::temp_dir().join(format!("aim-plot-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let png = dir.join("track.png");
+        plot_track(&png, &fixes, &truth, &site).unwrap();
+        let svg = std::fs::read_to_string(dir.join("track.svg")).unwrap();
+        let texts: Vec<String> = svg
+            .split("<text")
+            .skip(1)
+            .filter_map(|t| Some(t.split_once('>')?.1.split_once("</text>")?.0.trim().to_string()))
+            .collect();
+        for want in [
+            "AIM track against the truth: plan view",
+            "Height against time",
+            "Position error against time",
+            "x east (m)",
+            "y north (m)",
+            "time (s)",
+            "height z (m)",
+            "3-D error (m)",
+            "truth",
+            "track (LoS)",
+            "track (NLoS)",
+            "arrays",
+            "obstacles",
+            "track",
+        ] {
+            assert!(texts.iter().any(|t| t == want), "no text `{want}` in {texts:?}");
+        }
+        assert!(texts.iter().any(|t| t.starts_with("NLoS (tracker")), "{texts:?}");
+        assert!(texts.iter().any(|t| t.starts_with("|track")), "{texts:?}");
+        // Tick numbers: the plan spans 0–10 m, the time axes 0–10 s, the error axis 0–1.05 m.
+        let numbers: Vec<f64> = texts.iter().filter_map(|t| t.parse().ok()).collect();
+        assert!(numbers.len() >= 20, "{numbers:?}");
+        assert!(numbers.iter().any(|&v| v >= 8.0) && numbers.iter().any(|&v| v > 0.0 && v < 0.5));
+        // The PNG: its signature and the stated width and height in the IHDR chunk.
+        let bytes = std::fs::read(&png).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        let be = |i: usize| u32::from_be_bytes(bytes[i..i + 4].try_into().unwrap());
+        assert_eq!((be(16), be(20)), SIZE);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -1,7 +1,10 @@
 //! One module per `aim` subcommand: its arguments and its `run`.
+pub mod bus;
 pub mod frames;
+pub mod gateway;
 pub mod record;
 pub mod replay;
+pub mod serve;
 pub mod track;
 
 use aim_tracker::link::{self, serial::Link};
@@ -11,13 +14,19 @@ use aim_tracker::link::{self, serial::Link};
 pub struct SerialArgs {
     /// Serial port of the array board (`/dev/ttyACM0`, `COM3`, a stable name such as
     /// `/dev/serial/by-id/…` survives replugging best).
-    #[arg(long)]
-    pub serial: String,
+    #[arg(long, required_unless_present = "zenoh", conflicts_with = "zenoh")]
+    pub serial: Option<String>,
     /// Baud rate.
     #[arg(long, default_value_t = link::serial::DEFAULT_BAUD)]
     pub baud: u32,
     #[command(flatten)]
     pub reconnect: ReconnectArgs,
+    /// Read the frames of every array on the Zenoh bus (`aim/array/*/frames`, published by
+    /// `aim gateway`) instead of a serial port.
+    #[arg(long)]
+    pub zenoh: bool,
+    #[command(flatten)]
+    pub bus: bus::BusArgs,
 }
 
 /// What a serial command does when its port is lost (the board unplugged).
@@ -45,6 +54,11 @@ impl ReconnectArgs {
 impl SerialArgs {
     /// Opens the port raw, 8N1, at the baud rate, reconnecting as the flags say.
     pub fn open(&self) -> anyhow::Result<Link> {
-        self.reconnect.open(&self.serial, self.baud)
+        self.reconnect.open(self.port()?, self.baud)
+    }
+
+    /// The `--serial` port (absent only with `--zenoh`).
+    pub fn port(&self) -> anyhow::Result<&str> {
+        self.serial.as_deref().ok_or_else(|| anyhow::anyhow!("give --serial PORT or --zenoh"))
     }
 }

@@ -1,4 +1,5 @@
-//! `aim record`: store the raw byte stream of a serial port in a file.
+//! `aim record`: store the raw byte stream of a serial port in a file (or, with `--zenoh`, the
+//! frames of every array on the Zenoh bus in arrival order: the same format).
 //!
 //! It ends after `--duration` or `--frames`, on Ctrl-C / SIGTERM (exit status 130) or when the
 //! port is lost and does not come back (exit status 3); the summary line is printed on every
@@ -46,36 +47,17 @@ pub fn deadline(duration_s: Option<f64>, now: Instant) -> anyhow::Result<Option<
 /// Runs `aim record`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let deadline = deadline(args.duration, Instant::now())?;
+    if args.link.zenoh {
+        return run_zenoh(&args, Until { deadline, frames: args.frames });
+    }
     let mut port = args.link.open()?;
+    let serial = args.link.port()?;
     let mut out = std::fs::File::create(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     // Tests and scripts wait for this line before they send: the port is configured now.
-    note(&format!(
-        "recording {} at {} baud to {}",
-        args.link.serial,
-        args.link.baud,
-        args.out.display()
-    ));
-    let spinner = indicatif::ProgressBar::new_spinner();
-    let mut last_draw = Instant::now();
-    let (stats, result) = link::record::record(
-        &mut port,
-        &mut out,
-        Until { deadline, frames: args.frames },
-        &mut |s| {
-            if last_draw.elapsed() >= Duration::from_millis(200) {
-                last_draw = Instant::now();
-                spinner.set_message(format!(
-                    "{} bytes, {} frames, {} damaged",
-                    s.bytes,
-                    s.frames,
-                    s.errors()
-                ));
-                spinner.tick();
-            }
-        },
-    );
-    spinner.finish_and_clear();
+    note(&format!("recording {} at {} baud to {}", serial, args.link.baud, args.out.display()));
+    let (stats, result) =
+        record_with_spinner(&mut port, &mut out, Until { deadline, frames: args.frames });
     // The summary on every path: done, interrupted, port lost, file error.
     note(&format!(
         "recorded {} bytes ({} frames, {} damaged or unknown) to {}{}",
@@ -88,11 +70,69 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             n => format!("; the port was lost {n} time(s)"),
         }
     ));
-    result.with_context(|| format!("recording {} to {}", args.link.serial, args.out.display()))?;
+    result.with_context(|| format!("recording {} to {}", serial, args.out.display()))?;
     if port.interrupted() {
         return Err(Interrupted.into());
     }
     Ok(())
+}
+
+/// `aim record --zenoh`: the frames of every array on the bus, in arrival order, to the file
+/// (each sample's bytes as received: an ordinary recording).
+#[cfg(feature = "zenoh")]
+fn run_zenoh(args: &Args, until: Until) -> anyhow::Result<()> {
+    use aim_tracker::link::bus::{FrameFeed, FRAMES_ALL};
+    use zenoh::Wait as _;
+    let session = args.link.bus.open()?;
+    let mut feed = FrameFeed::subscribe(&session)?.stop_on(link::serial::interrupt_flag()?);
+    let mut out = std::fs::File::create(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    // Tests and scripts wait for this line before they publish: the subscription is declared.
+    note(&format!("recording {FRAMES_ALL} to {}", args.out.display()));
+    let (stats, result) = record_with_spinner(&mut feed, &mut out, until);
+    note(&format!(
+        "recorded {} bytes ({} frames, {} damaged or unknown) to {}",
+        stats.bytes,
+        stats.frames,
+        stats.errors(),
+        args.out.display(),
+    ));
+    let _ = session.close().wait();
+    result.with_context(|| format!("recording {FRAMES_ALL} to {}", args.out.display()))?;
+    if feed.interrupted() {
+        return Err(Interrupted.into());
+    }
+    Ok(())
+}
+
+/// `aim record --zenoh` in an `aim` built without the bus.
+#[cfg(not(feature = "zenoh"))]
+fn run_zenoh(_args: &Args, _until: Until) -> anyhow::Result<()> {
+    Err(super::bus::unavailable())
+}
+
+/// [`link::record::record`] with a spinner showing the counts on stderr.
+fn record_with_spinner(
+    port: &mut dyn std::io::Read,
+    out: &mut dyn std::io::Write,
+    until: Until,
+) -> (aim_wire::LinkStats, std::io::Result<()>) {
+    let spinner = indicatif::ProgressBar::new_spinner();
+    let mut last_draw = Instant::now();
+    let (stats, result) = link::record::record(port, out, until, &mut |s| {
+        if last_draw.elapsed() >= Duration::from_millis(200) {
+            last_draw = Instant::now();
+            spinner.set_message(format!(
+                "{} bytes, {} frames, {} damaged",
+                s.bytes,
+                s.frames,
+                s.errors()
+            ));
+            spinner.tick();
+        }
+    });
+    spinner.finish_and_clear();
+    (stats, result)
 }
 
 #[cfg(test)]

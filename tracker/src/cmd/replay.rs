@@ -10,7 +10,10 @@ use std::path::PathBuf;
 use aim_tracker::filter::FilterKind;
 use aim_tracker::intake::IntakeConfig;
 use aim_tracker::link::{self, FrameSource};
+use aim_tracker::output::mavlink::MavlinkOut;
+use aim_tracker::output::ned::Origin;
 use aim_tracker::profile::Profile;
+use aim_tracker::serve::tap::Tap;
 use aim_tracker::session::Session;
 use aim_tracker::site::Site;
 use aim_tracker::tracker::{Tracker, TrackerConfig};
@@ -34,6 +37,32 @@ pub struct TrackOptions {
     /// Output period, s.
     #[arg(long, default_value_t = 0.1)]
     pub period: f64,
+    #[command(flatten)]
+    pub mavlink: MavlinkArgs,
+    #[command(flatten)]
+    pub serve: super::serve::ServeArgs,
+}
+
+/// The MAVLink output of `aim track`/`aim replay` (see `aim_tracker::output::mavlink`).
+#[derive(clap::Args)]
+pub struct MavlinkArgs {
+    /// Also send each fix to an autopilot as MAVLink 2 VISION_POSITION_ESTIMATE (with
+    /// HEARTBEAT at 1 Hz), in the local NED frame of the site file's `[origin]`:
+    /// `udpout:HOST:PORT` or `serial:PORT:BAUD`.
+    #[arg(long, value_name = "ADDRESS")]
+    pub mavlink: Option<String>,
+    /// MAVLink system id of the messages (the vehicle's).
+    #[arg(long, default_value_t = aim_tracker::output::mavlink::DEFAULT_SYSTEM_ID)]
+    pub mavlink_system_id: u8,
+}
+
+impl MavlinkArgs {
+    /// The MAVLink output, if `--mavlink` was given (the site file must have `[origin]`).
+    pub fn open(&self, site: &std::path::Path) -> anyhow::Result<Option<MavlinkOut>> {
+        let Some(address) = &self.mavlink else { return Ok(None) };
+        let origin = Origin::load(site).context("--mavlink")?;
+        Ok(Some(MavlinkOut::open(address, origin, self.mavlink_system_id)?))
+    }
 }
 
 impl TrackOptions {
@@ -68,34 +97,67 @@ pub struct Args {
     frames: String,
     #[command(flatten)]
     options: TrackOptions,
+    /// Replay pace: `free` (as fast as possible), `real` (the link's pace) or a speed-up such
+    /// as `4`; with `--serve` the map then updates as it would live.
+    #[arg(long, default_value = "free", value_name = "real|N|free")]
+    pace: aim_tracker::serve::tap::Pace,
 }
 
 /// Feeds every frame of `source` through the session, printing fixes as JSON lines as soon as
-/// they are available (`live`: flushed one by one), then the statistics line on stderr.
+/// they are available (`live`: flushed one by one) and sending them to `mavlink` if given,
+/// then the statistics line on stderr (and `{"kind":"mavlink","sent":..,"failed":..}`). Every
+/// fix also goes to `also` after it is printed (the live map, the bus).
 pub fn track_frames<R: std::io::Read>(
     name: &str,
     source: &mut FrameSource<R>,
     session: &mut Session,
     site: &std::path::Path,
     live: bool,
+    mavlink: Option<&MavlinkOut>,
+    also: &mut dyn FnMut(&aim_tracker::tracker::Fix) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     let result = session.track_reader(source, &mut |fix| {
         writeln!(out, "{}", fix.to_json()).context("writing to stdout")?;
+        if let Some(m) = mavlink {
+            m.send(fix);
+        }
         if live {
             out.flush().context("writing to stdout")?;
         }
-        Ok(())
+        also(fix)
     });
     out.flush().context("writing to stdout")?;
     eprintln!("{}", session.stats_json(source.stats()));
+    if let Some(m) = mavlink {
+        let (sent, failed) = m.counts();
+        eprintln!("{{\"kind\":\"mavlink\",\"sent\":{sent},\"failed\":{failed}}}");
+    }
     result.with_context(|| format!("{name} (site {})", site.display()))
 }
 
 /// Runs `aim replay`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut session = args.options.build()?;
-    let mut source = FrameSource::new(link::open_input(&args.frames)?);
-    track_frames(&args.frames, &mut source, &mut session, &args.options.site, false)
+    let mavlink = args.options.mavlink.open(&args.options.site)?;
+    let map = args.options.serve.start(&args.options.site)?;
+    let input = link::open_input(&args.frames)?;
+    let mut source = FrameSource::new(Tap::new(input, map.clone(), args.pace));
+    let result = track_frames(
+        &args.frames,
+        &mut source,
+        &mut session,
+        &args.options.site,
+        false,
+        mavlink.as_ref(),
+        &mut |fix| super::serve::show(&map, fix),
+    );
+    if let Some(map) = map {
+        map.end();
+        if result.is_ok() {
+            super::serve::serve_until_interrupted(&map)?;
+        }
+    }
+    result
 }

@@ -15,6 +15,9 @@
 use aim_tracker::exit::Interrupted;
 use aim_tracker::link::FrameSource;
 
+use aim_tracker::serve::tap::{Pace, Tap};
+use aim_tracker::serve::LiveMap;
+
 use super::replay::{track_frames, TrackOptions};
 
 /// Arguments of `aim track`.
@@ -27,6 +30,10 @@ pub struct Args {
     /// Print the status line on stderr every this many seconds (0: never).
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
     status_every: f64,
+    /// With `--zenoh`: this tracker's name on the bus, its fixes go to `aim/track/<name>/fix`
+    /// (default: the site file's name without `.toml`).
+    #[arg(long)]
+    name: Option<String>,
 }
 
 /// Runs `aim track`.
@@ -43,19 +50,81 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let mut session = args.options.build()?;
+    let mavlink = args.options.mavlink.open(&args.options.site)?;
     if every > 0.0 {
         spawn_status_line(&session, every);
     }
-    let mut source = FrameSource::new(args.link.open()?);
+    let map = args.options.serve.start(&args.options.site)?;
+    if args.link.zenoh {
+        return track_zenoh(&args, &mut session, mavlink.as_ref(), map);
+    }
+    let port = args.link.port()?;
+    let mut source = FrameSource::new(Tap::new(args.link.open()?, map.clone(), Pace::Free));
     // Scripts and tests wait for this line before they send: the port is configured now.
-    eprintln!("tracking {} at {} baud", args.link.serial, args.link.baud);
+    eprintln!("tracking {} at {} baud", port, args.link.baud);
+    let site = &args.options.site;
     let result =
-        track_frames(&args.link.serial, &mut source, &mut session, &args.options.site, true);
+        track_frames(port, &mut source, &mut session, site, true, mavlink.as_ref(), &mut |fix| {
+            super::serve::show(&map, fix)
+        });
+    if let Some(map) = &map {
+        map.end();
+    }
     result?;
-    if source.get_mut().interrupted() {
+    if source.get_mut().get_mut().interrupted() {
         return Err(Interrupted.into());
     }
     Ok(())
+}
+
+/// `aim track --zenoh`: the frames of every array on the bus through the same intake; each fix
+/// printed and published on `aim/track/<name>/fix`. Ends on Ctrl-C / SIGTERM (status 130)
+/// with the last fixes and the statistics line.
+#[cfg(feature = "zenoh")]
+fn track_zenoh(
+    args: &Args,
+    session: &mut aim_tracker::session::Session,
+    mavlink: Option<&aim_tracker::output::mavlink::MavlinkOut>,
+    map: Option<LiveMap>,
+) -> anyhow::Result<()> {
+    use aim_tracker::link::bus::{fix_key, FrameFeed, LinePublisher, FRAMES_ALL};
+    use zenoh::Wait as _;
+    let name = match &args.name {
+        Some(name) => name.clone(),
+        None => args.options.site.file_stem().unwrap_or_default().to_string_lossy().into_owned(),
+    };
+    let bus = args.link.bus.open()?;
+    let fixes = LinePublisher::new(&bus, fix_key(&name)?)?;
+    let feed = FrameFeed::subscribe(&bus)?.stop_on(aim_tracker::link::serial::interrupt_flag()?);
+    let mut source = FrameSource::new(Tap::new(feed, map.clone(), Pace::Free));
+    // Scripts and tests wait for this line before they publish: the subscription is declared.
+    eprintln!("tracking {FRAMES_ALL} on the Zenoh bus, fixes on {}", fixes.key());
+    let site = &args.options.site;
+    let result = track_frames(FRAMES_ALL, &mut source, session, site, true, mavlink, &mut |fix| {
+        fixes.put(&fix.to_json())?;
+        super::serve::show(&map, fix)
+    });
+    if let Some(map) = &map {
+        map.end();
+    }
+    // Closing sends the last fixes still queued before the process ends.
+    let _ = bus.close().wait();
+    result?;
+    if source.get_mut().get_mut().interrupted() {
+        return Err(Interrupted.into());
+    }
+    Ok(())
+}
+
+/// `aim track --zenoh` in an `aim` built without the bus.
+#[cfg(not(feature = "zenoh"))]
+fn track_zenoh(
+    _args: &Args,
+    _session: &mut aim_tracker::session::Session,
+    _mavlink: Option<&aim_tracker::output::mavlink::MavlinkOut>,
+    _map: Option<LiveMap>,
+) -> anyhow::Result<()> {
+    Err(super::bus::unavailable())
 }
 
 /// Allowed `--status-every`, s (0: off; up to a day).

@@ -7,7 +7,7 @@
 //! bearing, speed and motion-class updates, weighted by its measurement likelihoods. The
 //! mixture's covariance (spread of hypotheses included) is reported honestly.
 
-use super::ekf::{Ekf, LN_REST, STATE, ZENITH_BIAS};
+use super::ekf::{Ekf, LN_REST, STATE, WAKE_GAIN, ZENITH_BIAS};
 use super::{max_range_in_room, world_direction, Estimate, Filter, Step};
 use crate::linalg::Mat;
 use crate::motion::MotionClass;
@@ -81,6 +81,24 @@ pub struct AimConfig {
     /// Random-walk density of the log emitted BPF during a manoeuvre (thrust changes by a few
     /// % within a second: 0.8 Hz of 328 Hz per m/s² of acceleration), 1/s.
     pub q_rest_manoeuvre: f64,
+    /// Prior mean of the wake-split gain (relative front/rear split per m/s) learned online
+    /// from [`Step::wake_splits`](super::Step): an order of magnitude only (a few % of thrust
+    /// lost per m/s by the downstream rotors), not any airframe's value.
+    pub wake_gain_prior: f64,
+    /// Prior standard deviation of the wake-split gain, per m/s.
+    pub wake_gain_sigma: f64,
+    /// Random-walk density of the wake-split gain (the wake law is not linear in airspeed, so
+    /// the gain of one speed drifts to the next), 1/(m²/s).
+    pub q_wake_gain: f64,
+    /// Floor of one frame's split noise, dimensionless.
+    pub wake_split_sigma_floor: f64,
+    /// Use the speed integrated from the thrust excess ([`crate::dynamics::SpeedIntegrator`])
+    /// while no wake cue has settled. Off by default: in cruise the wake's own thrust excess
+    /// keeps the integrator accelerating (traced on square10-los seed 105: 6 m/s integrated
+    /// on a 1.5 m/s leg, the mixture followed it to 4× the range), and as a fresh
+    /// measurement at every output it outweighed the bearings; off, the tuning seeds' mean
+    /// over 15 families went from 3.67 to 3.36 m (BENCHMARKS.md, issue 12 session 6).
+    pub integrated_speed: bool,
 }
 
 impl Default for AimConfig {
@@ -111,6 +129,11 @@ impl Default for AimConfig {
             rest_sigma: 0.05,
             q_rest: 2e-7,
             q_rest_manoeuvre: 2e-5,
+            wake_gain_prior: 0.01,
+            wake_gain_sigma: 0.01,
+            q_wake_gain: 1e-8,
+            wake_split_sigma_floor: 5e-4,
+            integrated_speed: false,
         }
     }
 }
@@ -159,6 +182,7 @@ impl AimFilter {
                     0.0,
                     0.0,
                     0.0,
+                    c.wake_gain_prior,
                 ];
                 // Along the ray: half the spacing to the neighbours; across: the bearing noise.
                 let along = r * (ratio - 1.0) * 0.5;
@@ -166,6 +190,7 @@ impl AimFilter {
                 let mut cov = Mat::zeros(STATE, STATE);
                 cov[(ZENITH_BIAS, ZENITH_BIAS)] = c.zenith_bias_sigma.powi(2);
                 cov[(LN_REST, LN_REST)] = c.rest_sigma.powi(2);
+                cov[(WAKE_GAIN, WAKE_GAIN)] = c.wake_gain_sigma.powi(2);
                 for i in 0..3 {
                     for j in 0..3 {
                         let proj = dir[i] * dir[j];
@@ -273,7 +298,7 @@ impl AimFilter {
                     for b in 3..5 {
                         g.p[(a, b)] = 0.0;
                     }
-                    for b in [0, 1, 2, 5, ZENITH_BIAS, LN_REST] {
+                    for b in [0, 1, 2, 5, ZENITH_BIAS, LN_REST, WAKE_GAIN] {
                         g.p[(a, b)] = 0.0;
                         g.p[(b, a)] = 0.0;
                     }
@@ -365,6 +390,7 @@ impl Filter for AimFilter {
         for (lw, f) in self.components.iter_mut() {
             f.predict(step.dt, q, c.zenith_bias_tau_s, c.zenith_bias_sigma);
             f.diffuse_rest(q_rest * step.dt);
+            f.p[(WAKE_GAIN, WAKE_GAIN)] += c.q_wake_gain * step.dt;
             let mut ll = 0.0;
             match step.motion {
                 MotionClass::Hover | MotionClass::Yaw => {
@@ -415,12 +441,19 @@ impl Filter for AimFilter {
                             ll += f.update_horizontal_speed(v, sigma.max(0.05)).unwrap_or(0.0);
                         }
                     }
-                    None if s.horizontal > 0.1 => {
+                    None if s.horizontal > 0.1 && c.integrated_speed => {
                         ll += f
                             .update_horizontal_speed(s.horizontal, s.horizontal_sigma.max(0.05))
                             .unwrap_or(0.0);
                     }
                     None => {}
+                }
+            }
+            if step.motion == MotionClass::Horizontal {
+                for &(split, sigma) in step.wake_splits.iter().flatten() {
+                    ll += f
+                        .update_wake_split(split, sigma.max(c.wake_split_sigma_floor))
+                        .unwrap_or(0.0);
                 }
             }
             if let Some(room) = step.room {
@@ -450,32 +483,9 @@ impl Filter for AimFilter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::doa::DoaState;
     use crate::dynamics::AcousticSpeed;
-    use crate::observation::angles_of;
     use crate::site::ArrayPose;
-
-    fn doa(t: f64, pos: [f64; 3], rng: &mut crate::testutil::Rng) -> DoaState {
-        let (az, zen) = angles_of(pos);
-        DoaState {
-            t,
-            azimuth_rad: az + 0.5f64.to_radians() * rng.normal(),
-            zenith_rad: zen + 0.5f64.to_radians() * rng.normal(),
-            azimuth_rate: 0.0,
-            zenith_rate: 0.0,
-            angular_rate: 0.0,
-            angular_rate_sigma: 0.0,
-            erratic_rad: 0.0,
-            fit_residual: 0.2,
-            quality: 0.5,
-            inlier_fraction: 1.0,
-            inliers: 6,
-            noise_rad: 0.01,
-            time_spread_s: 0.5,
-            los: true,
-            moving: false,
-        }
-    }
+    use crate::testutil::doa;
 
     /// A drone hovers, then flies a straight leg at 1.5 m/s in `heading` (rad); returns the
     /// filter's velocity direction and position error at the end of the leg.
@@ -509,6 +519,7 @@ mod tests {
                 speed,
                 room: None,
                 cruise_speeds: None,
+                wake_splits: None,
                 doppler: Vec::new(),
                 speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
             };
@@ -534,7 +545,10 @@ mod tests {
         let outwards = 3.0f64.atan2(5.0);
         for j in 0..8 {
             let heading = std::f64::consts::TAU * (j as f64 + 0.3) / 8.0;
-            let (direction, err) = fly_leg(AimConfig::default(), heading);
+            // The leg's speed reaches the filter as the acoustic speed (the integrated-speed
+            // path, off by default for the tracker's biased integrator, on for this oracle).
+            let config = AimConfig { integrated_speed: true, ..AimConfig::default() };
+            let (direction, err) = fly_leg(config, heading);
             let off = crate::observation::wrap_pi(direction - heading).abs();
             assert!(off < 15f64.to_radians(), "leg {j}: heading off by {}°", off.to_degrees());
             let tangential = crate::observation::wrap_pi(heading - outwards).sin().abs();
@@ -560,7 +574,7 @@ mod tests {
         let mut cov = Mat::identity(STATE).scaled(0.01);
         cov[(LN_REST, LN_REST)] = 1e-4;
         filter.components =
-            vec![(0.0, Ekf::new([here[0], here[1], here[2], 0.0, 0.0, 0.0, 0.0, 0.0], cov))];
+            vec![(0.0, Ekf::new([here[0], here[1], here[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01], cov))];
         let speed = AcousticSpeed {
             horizontal: 0.0,
             horizontal_sigma: 0.1,
@@ -583,6 +597,7 @@ mod tests {
                 speed,
                 room: None,
                 cruise_speeds: None,
+                wake_splits: None,
                 doppler: Vec::new(),
                 speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
             };

@@ -14,7 +14,7 @@ use crate::observation::{angles_of, wrap_pi};
 use crate::site::ArrayPose;
 
 /// Length of the state vector.
-pub const STATE: usize = 8;
+pub const STATE: usize = 9;
 
 /// Index of the zenith bias in the state.
 pub const ZENITH_BIAS: usize = 6;
@@ -22,13 +22,17 @@ pub const ZENITH_BIAS: usize = 6;
 /// Index of the log emitted BPF, ln(f_rest / f_ref), in the state.
 pub const LN_REST: usize = 7;
 
+/// Index of the wake-split gain in the state: the relative front/rear BPF split of cruise per
+/// m/s of horizontal airspeed (dimensionless per m/s), learned online ([`Ekf::update_wake_split`]).
+pub const WAKE_GAIN: usize = 8;
+
 /// State and covariance of one constant-velocity EKF.
 #[derive(Clone, Debug)]
 pub struct Ekf {
-    /// State [x y z vx vy vz b d]: position m, velocity m/s, zenith bias rad, log emitted BPF
-    /// against the reference (dimensionless).
+    /// State [x y z vx vy vz b d k]: position m, velocity m/s, zenith bias rad, log emitted BPF
+    /// against the reference (dimensionless), wake-split gain (per m/s).
     pub x: [f64; STATE],
-    /// Covariance, 8×8.
+    /// Covariance, 9×9.
     pub p: Mat,
 }
 
@@ -240,6 +244,28 @@ impl Ekf {
         self.update(&[speed], &[s], &h, &Mat::diagonal(&[sigma * sigma]), Residual::Linear)
     }
 
+    /// Wake-split update: the change of the relative front/rear BPF split against hover,
+    /// `split` ± `sigma` (dimensionless), predicted as k·|v_xy| with k the state's wake gain
+    /// ([`WAKE_GAIN`]). Speed and gain are learned together: the split fixes their product,
+    /// the bearings' rate speed over range, the Doppler (and earlier legs, through k) the scale.
+    /// Skipped (None) while the predicted speed is too small for a direction.
+    pub fn update_wake_split(&mut self, split: f64, sigma: f64) -> Option<f64> {
+        let s = self.x[3].hypot(self.x[4]);
+        if s < 0.05 || !(split.is_finite() && sigma > 0.0) {
+            return None;
+        }
+        let k = self.x[WAKE_GAIN];
+        let mut h = Mat::zeros(1, STATE);
+        h[(0, 3)] = k * self.x[3] / s;
+        h[(0, 4)] = k * self.x[4] / s;
+        h[(0, WAKE_GAIN)] = s;
+        let ll =
+            self.update(&[split], &[k * s], &h, &Mat::diagonal(&[sigma * sigma]), Residual::Linear);
+        // The gain is a positive physical constant: a linearised step may not cross zero.
+        self.x[WAKE_GAIN] = self.x[WAKE_GAIN].max(1e-4);
+        ll
+    }
+
     /// Linear update of selected velocity components towards `values` ± `sigma`.
     pub fn update_velocity(&mut self, axes: &[usize], values: &[f64], sigma: f64) -> Option<f64> {
         let mut h = Mat::zeros(axes.len(), STATE);
@@ -266,8 +292,8 @@ mod tests {
     fn covariance_stays_symmetric_positive_definite() {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.3, 0.0, 0.0);
         let mut f = Ekf::new(
-            [5.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-2]),
+            [5.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
+            Mat::diagonal(&[4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-2, 1e-4]),
         );
         let mut rng = crate::testutil::Rng::new(11);
         for k in 0..300 {
@@ -312,8 +338,8 @@ mod tests {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let truth = [8.0, 3.0, 2.0];
         let mut f = Ekf::new(
-            [truth[0], truth[1], truth[2], 0.0, 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 0.1f64.powi(2), 1e-4]),
+            [truth[0], truth[1], truth[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
+            Mat::diagonal(&[1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 0.1f64.powi(2), 1e-4, 1e-4]),
         );
         let (az, zen) = angles_of(truth);
         let offset = 3.0f64.to_radians();
@@ -334,8 +360,8 @@ mod tests {
         // the ray, its distance from the array almost unchanged.
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut f = Ekf::new(
-            [6.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-3]),
+            [6.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
+            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-4]),
         );
         let range = |f: &Ekf| f.x[0].hypot(f.x[1]);
         let before = range(&f);
@@ -350,8 +376,8 @@ mod tests {
     fn bearing_update_moves_towards_the_ray() {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut f = Ekf::new(
-            [5.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-6, 1e-6]),
+            [5.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01],
+            Mat::diagonal(&[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e-6, 1e-6, 1e-6]),
         );
         let truth = [5.0, 1.0, 2.0];
         let (az, zen) = angles_of(truth);
@@ -360,5 +386,33 @@ mod tests {
         let after = wrap_pi(angles_of(f.position()).0 - az).abs();
         assert!(after < 0.1 * before, "{before} → {after}");
         assert!(ll.is_finite());
+    }
+
+    #[test]
+    fn the_wake_gain_is_learned_from_splits_where_the_speed_is_known() {
+        // The speed is pinned (a 1.5 m/s leg along x, speed updates as the bearings' rate
+        // would give at a known range); the splits read 0.7 %/(m/s)·1.5 m/s with 0.4 % noise
+        // per frame: the gain state, started at 0.01 ± 0.01, must end within 5 % of 0.007.
+        let mut f = Ekf::new(
+            [5.0, 0.0, 2.0, 1.5, 0.0, 0.0, 0.0, 0.0, 0.01],
+            Mat::diagonal(&[0.01, 0.01, 0.01, 0.01, 0.01, 0.01, 1e-6, 1e-6, 1e-4]),
+        );
+        let mut rng = crate::testutil::Rng::new(3);
+        for _ in 0..400 {
+            f.predict(0.1, [1e-4; 3], 20.0, 1e-3);
+            f.update_velocity(&[0, 1], &[1.5, 0.0], 0.02).unwrap();
+            f.update_wake_split(0.007 * 1.5 + 0.004 * rng.normal(), 0.004).unwrap();
+            assert_spd(&f.p);
+        }
+        assert!((f.x[WAKE_GAIN] - 0.007).abs() < 0.05 * 0.007, "gain {}", f.x[WAKE_GAIN]);
+        // And the other way round: with the gain known, a split reads the speed.
+        let mut g = Ekf::new(
+            [5.0, 0.0, 2.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.007],
+            Mat::diagonal(&[0.01, 0.01, 0.01, 1.0, 0.01, 0.01, 1e-6, 1e-6, 1e-10]),
+        );
+        for _ in 0..50 {
+            g.update_wake_split(0.007 * 1.5, 0.001).unwrap();
+        }
+        assert!((g.x[3] - 1.5).abs() < 0.05, "speed {}", g.x[3]);
     }
 }

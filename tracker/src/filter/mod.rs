@@ -62,6 +62,11 @@ pub struct Step<'a> {
     /// The BPF frames heard since the previous step, each as its centre frequency
     /// ([`crate::doppler::FrameCentre`]), for the Doppler cue.
     pub doppler: Vec<crate::doppler::DopplerFrame>,
+    /// Each new spectrum frame's change of the relative front/rear BPF split against hover
+    /// and its standard deviation (dimensionless), during a settled horizontal leg, when the
+    /// profile has no wake coefficient and the tracker learns the gain online
+    /// ([`crate::tracker::TrackerConfig::online_wake_gain`]); `None` otherwise.
+    pub wake_splits: Option<Vec<(f64, f64)>>,
     /// Speed of sound at the site, m/s.
     pub speed_of_sound_mps: f64,
 }

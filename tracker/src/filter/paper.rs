@@ -301,11 +301,10 @@ impl Filter for PaperFilter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::doa::DoaState;
     use crate::dynamics::AcousticSpeed;
     use crate::observation::angles_of;
     use crate::site::ArrayPose;
-    use crate::testutil::Rng;
+    use crate::testutil::{doa, Rng};
 
     /// Bearing noise of the smoothed DoA, rad (0.5°, the LoS level of the DoA window).
     const NOISE: f64 = 0.5 * std::f64::consts::PI / 180.0;
@@ -401,28 +400,6 @@ mod tests {
         assert!((h - 3.2).abs() < 0.1, "solved {h} m");
     }
 
-    fn doa(t: f64, pos: [f64; 3], rng: &mut Rng) -> DoaState {
-        let (az, zen) = angles_of(pos);
-        DoaState {
-            t,
-            azimuth_rad: az + NOISE * rng.normal(),
-            zenith_rad: zen + NOISE * rng.normal(),
-            azimuth_rate: 0.0,
-            zenith_rate: 0.0,
-            angular_rate: 0.0,
-            angular_rate_sigma: 0.0,
-            erratic_rad: 0.0,
-            fit_residual: 0.2,
-            quality: 0.5,
-            inlier_fraction: 1.0,
-            inliers: 6,
-            noise_rad: 0.01,
-            time_spread_s: 0.5,
-            los: true,
-            moving: false,
-        }
-    }
-
     #[test]
     fn the_filter_tracks_a_leg_and_dead_reckons_without_line_of_sight() {
         // Hover 2 s at an unknown height (the prior is 1.5 m, the drone at 2.5 m), a leg of
@@ -455,6 +432,7 @@ mod tests {
                 },
                 room: None,
                 cruise_speeds: None,
+                wake_splits: None,
                 doppler: Vec::new(),
                 speed_of_sound_mps: 343.2,
             };

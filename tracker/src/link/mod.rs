@@ -7,6 +7,7 @@
 //!   decodes the very frame sequence the live link did.
 //! - [`json`]: frames and statistics as the JSON objects `aim frames` prints.
 //! - [`boards`]: the board behind each array id, from its `Hello`: reboots, duplicate ids.
+//! - `bus` (feature `zenoh`): frames and fixes on the Zenoh bus (`aim gateway`, `--zenoh`).
 //!
 //! ```no_run
 //! use aim_tracker::link::{self, FrameSource};
@@ -21,6 +22,8 @@
 //! ```
 
 pub mod boards;
+#[cfg(feature = "zenoh")]
+pub mod bus;
 pub mod json;
 pub mod record;
 pub mod serial;

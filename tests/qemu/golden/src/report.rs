@@ -26,6 +26,7 @@ pub const MAX_TDM_SLOTS: usize = 8;
 /// where it lives) for every scenario in turn.
 pub fn write_parity(w: &mut impl Write, pipeline: &mut Pipeline) -> fmt::Result {
     write_rfft(w)?;
+    write_doa_fits(w)?;
     write_pdm(w)?;
     for scenario in &PARITY {
         writeln!(w, "scenario {}", scenario.name)?;
@@ -167,6 +168,61 @@ pub fn write_output(w: &mut impl Write, output: &Output) -> fmt::Result {
     }
     // Debug prints every field (also ones added later) with round-trip exact floats.
     writeln!(w, " | {output:?}")
+}
+
+/// The robust direction fit on its own, with pairs locked onto reflections (the robust path
+/// the golden tone rarely takes): per array and case, `fit <mics> <case>` and the fit's floats
+/// as bit patterns, then `Debug`. Case 0 is clean; case k moves every (7·k)-th pair (from
+/// pair k) by ±3 samples, as a reflection-locked correlation peak would.
+pub fn write_doa_fits(w: &mut impl Write) -> fmt::Result {
+    use aim_dsp::{doa, gcc_phat::DelayEstimate, Geometry, MAX_PAIRS};
+    let k = SAMPLE_RATE_HZ as f32 / 343.0;
+    let geometries =
+        [Geometry::respeaker_4mic(), Geometry::respeaker_6mic(), Geometry::circle_8mic()];
+    for g in geometries {
+        let p = g.positions();
+        let mut pairs = [doa::Pair::default(); MAX_PAIRS];
+        let mut n = 0;
+        for i in 0..p.len() {
+            for j in i + 1..p.len() {
+                let b = [p[i][0] - p[j][0], p[i][1] - p[j][1]];
+                pairs[n] = doa::Pair { i: i as u8, j: j as u8, baseline_m: b, max_lag: 20 };
+                n += 1;
+            }
+        }
+        let pairs = &pairs[..n];
+        for case in 0..4usize {
+            // Direction (sin 70° cos 100°, sin 70° sin 100°), a different spread per case.
+            let u = [-0.163_176_9f32, 0.925_416_6];
+            let mut delays = [DelayEstimate::default(); MAX_PAIRS];
+            for (m, (d, pair)) in delays.iter_mut().zip(pairs).enumerate() {
+                let spread = 0.02 * ((m * 5 + case) % 9) as f32 - 0.08;
+                let mut tau = (pair.baseline_m[0] * u[0] + pair.baseline_m[1] * u[1]) * k + spread;
+                if case > 0 && m >= case && (m - case) % 7 == 0 {
+                    tau += if tau > 0.0 { -3.0 } else { 3.0 };
+                }
+                let q = ((m * 3 + case) % 5) as f32;
+                *d = DelayEstimate {
+                    delay_samples: tau,
+                    coherence: 0.6 + 0.08 * q,
+                    peak_margin: 0.9,
+                };
+            }
+            match doa::fit(pairs, &delays[..n], k) {
+                Some(f) => writeln!(
+                    w,
+                    "fit {} {case} {:08x} {:08x} {:08x} {:08x} | {f:?}",
+                    p.len(),
+                    f.azimuth_rad.to_bits(),
+                    f.zenith_rad.to_bits(),
+                    f.residual_samples.to_bits(),
+                    f.kept_weight.to_bits()
+                )?,
+                None => writeln!(w, "fit {} {case} none", p.len())?,
+            }
+        }
+    }
+    Ok(())
 }
 
 /// microfft `rfft_1024` of the first 1024 samples of microphone 0 (as f32 of the 24-bit value):

@@ -88,3 +88,42 @@ impl Scenario {
         16 * hop
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aim_dsp::{doa, Output, Pipeline};
+
+    /// The instruction budget counts the robust direction fit only if the cost run takes it:
+    /// the golden input's whole-sample microphone delays misfit the plane wave by more than
+    /// the Huber threshold, so (nearly) every `Doa` of every cost scenario runs the reweighted
+    /// steps.
+    #[test]
+    fn every_cost_doa_runs_the_robust_fit() {
+        for scenario in &COST {
+            let config = scenario.config();
+            let mut pipeline = Pipeline::new(&config).unwrap();
+            let k = config.sample_rate_hz as f32 / config.speed_of_sound_m_s;
+            let mut signal = scenario.signal();
+            let mut words = vec![0i32; 256 * config.tdm_slots];
+            let (mut doas, mut robust) = (0, 0);
+            while signal.sample_index() < scenario.measured_samples() as u64 {
+                signal.fill(&mut words);
+                let mut got = false;
+                pipeline.push(&words, &mut |o| got |= matches!(o, Output::Doa(_)));
+                if got {
+                    doas += 1;
+                    let f = doa::fit(pipeline.pairs(), pipeline.pair_delays(), k).unwrap();
+                    // Only the reweighted path keeps less than all of the weight (Tukey
+                    // weights are below 1 for any non-zero misfit).
+                    if f.kept_weight < 1.0 {
+                        robust += 1;
+                    }
+                }
+            }
+            assert!(doas > 10, "{}: {doas} DoA frames", scenario.name);
+            eprintln!("{}: {robust} of {doas} DoA frames take the robust path", scenario.name);
+            assert!(robust * 10 >= doas * 9, "{}: {robust} of {doas} robust", scenario.name);
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! The site plan the live map draws: the room, the arrays and the obstacles of a site file.
+
+use std::path::Path;
+
+use anyhow::Context as _;
+use serde_json::{json, Value};
+
+use crate::site::Site;
+
+/// The plan of `site`, read from the file at `path` (obstacles are informative in a site file:
+/// [`Site`] does not keep them, so they are read from the text here):
+/// `{"site":"<file name>","room":{"min":[x,y,z],"max":[x,y,z]}|null,
+/// "arrays":[{"id":..,"position":[x,y,z],"yaw_deg":..}],
+/// "obstacles":[{"name":"..","min":[x,y,z],"max":[x,y,z]}]}` (world ENU metres).
+pub fn plan_json(site: &Site, path: &Path) -> anyhow::Result<Value> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let table: toml::Table =
+        text.parse().with_context(|| format!("site file {}", path.display()))?;
+    let mut obstacles = Vec::new();
+    if let Some(list) = table.get("obstacle").and_then(|o| o.as_array()) {
+        for (i, o) in list.iter().enumerate() {
+            let corner = |key: &str| -> anyhow::Result<[f64; 3]> {
+                let v = o.get(key).and_then(|v| v.as_array()).filter(|v| v.len() == 3);
+                let v = v.ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "site file {}: obstacle {} needs {key} = [x, y, z] in metres",
+                        path.display(),
+                        i + 1
+                    )
+                })?;
+                let mut out = [0.0; 3];
+                for (o, x) in out.iter_mut().zip(v) {
+                    *o = x
+                        .as_float()
+                        .or_else(|| x.as_integer().map(|i| i as f64))
+                        .filter(|x| x.is_finite())
+                        .ok_or_else(|| {
+                            anyhow::anyhow!(
+                                "site file {}: obstacle {} {key}: {x} is not a number of metres",
+                                path.display(),
+                                i + 1
+                            )
+                        })?;
+                }
+                Ok(out)
+            };
+            let name = o.get("name").and_then(|n| n.as_str()).unwrap_or("obstacle");
+            obstacles.push(json!({ "name": name, "min": corner("min")?, "max": corner("max")? }));
+        }
+    }
+    let arrays: Vec<Value> = site
+        .arrays
+        .iter()
+        .map(|a| {
+            // The array's +x in the world, projected on the floor: its yaw.
+            let yaw = a.rotation[1][0].atan2(a.rotation[0][0]).to_degrees();
+            json!({ "id": a.id, "position": a.position, "yaw_deg": (yaw * 10.0).round() / 10.0 })
+        })
+        .collect();
+    Ok(json!({
+        "site": path.file_name().map(|n| n.to_string_lossy().into_owned()),
+        "room": site.room.map(|r| json!({ "min": r.min, "max": r.max })),
+        "arrays": arrays,
+        "obstacles": obstacles,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn room_arrays_and_obstacles_come_from_the_file() {
+        let dir = std::env::temp_dir().join(format!("aim-plan-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("hall.toml");
+        let text = "[[array]]\nid = 3\nposition = [1.0, 2.0, 0.0]\nyaw_deg = 90.0\n\n\
+                    [room]\nsize = [10.0, 8.0, 4.0]\n\n\
+                    [[obstacle]]\nname = \"shelf\"\nmin = [6.5, 7, 0.0]\nmax = [9.5, 7.5, 2.0]\nloss_db = 15.0\n";
+        std::fs::write(&path, text).unwrap();
+        let site = Site::load(&path).unwrap();
+        let plan = plan_json(&site, &path).unwrap();
+        assert_eq!(plan["site"], "hall.toml");
+        assert_eq!(plan["room"]["max"], json!([10.0, 8.0, 4.0]));
+        assert_eq!(plan["arrays"][0]["id"], 3);
+        assert_eq!(plan["arrays"][0]["yaw_deg"], 90.0);
+        assert_eq!(
+            plan["obstacles"][0],
+            json!({"name":"shelf","min":[6.5,7.0,0.0],"max":[9.5,7.5,2.0]})
+        );
+
+        std::fs::write(
+            &path,
+            "[[array]]\nid = 3\nposition = [1.0, 2.0, 0.0]\n[[obstacle]]\nmin = [1, 2]\n",
+        )
+        .unwrap();
+        let site = Site::load(&path).unwrap();
+        let e = plan_json(&site, &path).unwrap_err().to_string();
+        assert!(e.contains("obstacle 1 needs min = [x, y, z]"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
