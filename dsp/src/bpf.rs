@@ -34,9 +34,11 @@ pub struct Decimator {
     taps: [f32; MAX_TAPS],
     len: usize,
     factor: usize,
-    /// Delay line written twice (at i and i + len) so the dot product never wraps.
+    /// Delay line, appended at `end`: `line[end - len..end]` holds the last `len` inputs,
+    /// oldest first. When full, the last `len` move to the front (one copy per
+    /// `2·MAX_TAPS − len` inputs instead of two writes per input).
     line: [f32; 2 * MAX_TAPS],
-    pos: usize,
+    end: usize,
     phase: usize,
 }
 
@@ -48,7 +50,7 @@ impl Decimator {
             len: 1,
             factor: 1,
             line: [0.0; 2 * MAX_TAPS],
-            pos: 0,
+            end: 1,
             phase: 0,
         }
     }
@@ -78,7 +80,7 @@ impl Decimator {
         self.len = len;
         self.factor = factor;
         self.line = [0.0; 2 * MAX_TAPS];
-        self.pos = 0;
+        self.end = len;
         self.phase = 0;
     }
 
@@ -96,31 +98,44 @@ impl Decimator {
     /// sample; the same results as [`Decimator::push`] per sample, with the state in registers.
     pub fn push_block(&mut self, input: &[i32], scale: f32, out: &mut impl FnMut(f32)) {
         let (len, factor) = (self.len, self.factor);
-        let (mut pos, mut phase) = (self.pos, self.phase);
-        for &m in input {
-            let x = m as f32 * scale;
-            self.line[pos] = x;
-            self.line[pos + len] = x;
-            pos += 1;
-            if pos == len {
-                pos = 0;
+        let mut rest = input;
+        while !rest.is_empty() {
+            self.make_room();
+            // Append as many inputs as fit, then the outputs whose windows end among them
+            // (appending never overwrites a window still to be read).
+            let start = self.end;
+            let run = rest.len().min(self.line.len() - start);
+            let (now, later) = rest.split_at(run);
+            for (d, &m) in self.line[start..start + run].iter_mut().zip(now) {
+                *d = m as f32 * scale;
             }
-            phase += 1;
-            if phase == factor {
-                phase = 0;
-                out(self.output(pos));
+            self.end = start + run;
+            let mut next = start + (factor - self.phase);
+            while next <= self.end {
+                out(self.output(next));
+                next += factor;
             }
+            self.phase = (self.phase + run) % factor;
+            rest = later;
         }
-        self.pos = pos;
-        self.phase = phase;
     }
 
-    /// The filter output for the delay line ending before `pos`.
+    /// Moves the last `len` inputs to the front of a full delay line.
     #[inline]
-    fn output(&self, pos: usize) -> f32 {
-        // line[pos .. pos + len] holds the last `len` inputs, oldest first. The taps are
+    fn make_room(&mut self) {
+        if self.end == self.line.len() {
+            let len = self.len;
+            self.line.copy_within(self.end - len..self.end, 0);
+            self.end = len;
+        }
+    }
+
+    /// The filter output for the window ending before `end`.
+    #[inline]
+    fn output(&self, end: usize) -> f32 {
+        // line[end - len .. end] holds the last `len` inputs, oldest first. The taps are
         // symmetric (linear phase): fold the window and multiply each tap once.
-        let window = &self.line[pos..pos + self.len];
+        let window = &self.line[end - self.len..end];
         let half = self.len / 2;
         let (head, tail) = window.split_at(self.len - half);
         let mut acc = if self.len % 2 == 1 { head[half] * self.taps[half] } else { 0.0 };
@@ -143,18 +158,15 @@ impl Decimator {
     /// Feeds one input sample; returns an output sample every `factor` inputs.
     #[inline]
     pub fn push(&mut self, x: f32) -> Option<f32> {
-        self.line[self.pos] = x;
-        self.line[self.pos + self.len] = x;
-        self.pos += 1;
-        if self.pos == self.len {
-            self.pos = 0;
-        }
+        self.make_room();
+        self.line[self.end] = x;
+        self.end += 1;
         self.phase += 1;
         if self.phase < self.factor {
             return None;
         }
         self.phase = 0;
-        Some(self.output(self.pos))
+        Some(self.output(self.end))
     }
 }
 

@@ -166,7 +166,9 @@ pub fn whiten(mags: &[f32], white: &mut [f32], lo: usize, top: usize) {
         let mut inv = f0 + slope * (start as f32 - c0);
         let (lo_inv, hi_inv) = (f0.min(f1), f0.max(f1));
         for k in start..stop {
-            white[k] = mags[k] * inv.clamp(lo_inv, hi_inv);
+            // max/min, not clamp: clamp's panic on run-time bounds links core::fmt's float
+            // formatting into the firmware (about 20 KB of flash).
+            white[k] = mags[k] * inv.max(lo_inv).min(hi_inv);
             inv += slope;
         }
     }
