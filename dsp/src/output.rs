@@ -39,7 +39,8 @@ pub struct Doa {
 pub struct Peak {
     /// Fundamental frequency: amplitude-weighted mean of (harmonic frequency / harmonic number), Hz.
     pub hz: f32,
-    /// Amplitude of the fundamental, fraction of microphone full scale (mean over microphones).
+    /// Level of the group: root-sum-square of the amplitudes of its harmonic lines found in the
+    /// spectrum ([`crate::comb`]), fraction of microphone full scale (mean over microphones).
     pub amplitude: f32,
     /// Fraction of the expected harmonics (within the analysed band) found as spectral peaks, 0–1.
     pub harmonicity: f32,

@@ -560,7 +560,8 @@ fn wrap_degrees(deg: f32) -> f32 {
 pub struct Peak {
     /// Frequency, units of 0.01 Hz.
     pub freq_chz: u32,
-    /// Amplitude of the fundamental, units of 0.1 dB relative to microphone full scale
+    /// Level of the group (root-sum-square amplitude of its harmonic lines; older firmware: the
+    /// fundamental's amplitude), units of 0.1 dB relative to microphone full scale
     /// (dBFS; -3276.8 dB stands for silence).
     pub amplitude_ddb: i16,
     /// Harmonicity in [0, 1], units of 1/255.
