@@ -68,6 +68,11 @@ pub const MIN_AGE: u8 = 3;
 /// this factor of that one's either way (±6 dB per 0.256 s: a rotor's level is steady, a note
 /// dying away in a hall falls 10 dB per hop at RT60 1.6 s, a vowel starts and stops).
 pub const STEADY_RATIO: f32 = 2.0;
+/// Relative width of a rotor cluster: a passing group within this fraction of a reported one's
+/// BPF is reported with it before it has held for [`MIN_AGE`] analyses (rotor trims and a
+/// centre of gravity off the middle spread one airframe's rotor speeds by a few per cent;
+/// the Mambo's four lines lie within ±5 %).
+pub const CLUSTER: f32 = 0.08;
 /// Fraction of `Config::bpf_min_quality` at which a comb already reported continues.
 pub const HOLD_QUALITY: f32 = 0.5;
 /// Most fundamental candidates examined per analysis.
@@ -416,6 +421,9 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     let best = groups.iter().find(|g| g.passes).map_or(0.0, |g| g.score);
     let tolerance = 1.5 * bin_hz;
     let rate_hz_per_hz = config.bpf_max_rate_per_s * hop_s;
+    // The groups entered in `next` (the same order), as they would be reported.
+    let mut passing = [Peak::default(); 4];
+    let mut n_passing = 0usize;
     for g in groups.iter() {
         let allowed = 2.0 * bin_hz + rate_hz_per_hz * g.hz;
         let prior = history.age_of(g.hz, g.amplitude, allowed);
@@ -441,13 +449,26 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
         next.amplitude[next.count] = g.amplitude;
         next.age[next.count] = age;
         next.count += 1;
-        if age >= MIN_AGE && (out.count as usize) < out.peaks.len() {
-            out.peaks[out.count as usize] = Peak {
-                hz: g.hz,
-                amplitude: g.amplitude,
-                harmonicity: g.harmonicity,
-                quality: g.quality,
-            };
+        passing[n_passing] = Peak {
+            hz: g.hz,
+            amplitude: g.amplitude,
+            harmonicity: g.harmonicity,
+            quality: g.quality,
+        };
+        n_passing += 1;
+    }
+    // Reported: the groups that held for MIN_AGE analyses, and with them the passing groups
+    // of the same rotor cluster (within CLUSTER of one of them) still settling: continuity
+    // decides whether a rotor signature is there, not which of its rotors' groups count (a
+    // rotor pair whose fundamental dipped for one analysis would otherwise be missing for
+    // MIN_AGE − 1 frames, and a frame with one pair of two reads as a thrust change).
+    let aged = |i: usize| next.age[i] >= MIN_AGE;
+    for i in 0..n_passing {
+        let hz = passing[i].hz;
+        let near_aged = (0..n_passing)
+            .any(|j| aged(j) && libm::fabsf(passing[j].hz - hz) <= CLUSTER * passing[j].hz);
+        if (aged(i) || near_aged) && (out.count as usize) < out.peaks.len() {
+            out.peaks[out.count as usize] = passing[i];
             out.count += 1;
         }
     }

@@ -168,3 +168,51 @@ fn first_analyses_of_a_source_are_not_yet_a_rotor() {
     assert!(rest.iter().all(ok), "{rest:?}");
     assert!(rest.iter().all(|p| p.peaks[0].quality > 0.5), "{:?}", rest[0]);
 }
+
+#[test]
+fn a_second_rotor_group_joins_an_established_one_at_once() {
+    // One rotor pair at 322 Hz from the start, the other at 345 Hz (7 % above: the same rotor
+    // cluster, too far to continue the first group's history) from 1.3 s on: once the first is reported, the second is reported in the
+    // first analysis whose window holds it throughout, not MIN_AGE analyses later.
+    let mut rng = Rng::new(23);
+    let mut x = vec![0.0; 2 * N]; // 4 s
+    add_group(&mut x, 322.0, 0.05, &mut rng);
+    let start = (1.3 * FS) as usize;
+    let mut late = vec![0.0; 2 * N];
+    add_group(&mut late, 345.0, 0.05, &mut rng);
+    for (v, l) in x[start..].iter_mut().zip(&late[start..]) {
+        *v += l;
+    }
+    let peaks = analyse(&x, 30.0, &mut rng);
+    let window_s = 4096.0 / 8000.0;
+    for p in &peaks[SETTLING..] {
+        let t0 = p.sample_index as f64 / FS;
+        let has = |f: f32| p.peaks[..p.count as usize].iter().any(|q| (q.hz - f).abs() < 0.5);
+        if t0 < 1.3 && t0 + window_s > 1.3 {
+            continue; // the onset inside the window
+        }
+        assert!(p.rotor && has(322.0), "t0 {t0}: {p:?}");
+        if t0 >= 1.3 {
+            assert!(has(345.0), "second group missing in the window from {t0:.3} s: {p:?}");
+        }
+        if t0 + window_s <= 1.3 {
+            assert_eq!(p.count, 1, "t0 {t0}: {p:?}");
+        }
+    }
+    // With an established group of another airframe instead (250 Hz, outside the cluster),
+    // the late one waits for MIN_AGE consecutive analyses of its own.
+    let reported_345 = |peaks: &[Peaks]| {
+        peaks
+            .iter()
+            .position(|p| p.peaks[..p.count as usize].iter().any(|q| (q.hz - 345.0).abs() < 0.5))
+            .expect("the late group is reported")
+    };
+    let joined = reported_345(&peaks);
+    let mut other = vec![0.0; 2 * N];
+    add_group(&mut other, 250.0, 0.05, &mut rng);
+    for (v, l) in other[start..].iter_mut().zip(&late[start..]) {
+        *v += l;
+    }
+    let alone = reported_345(&analyse(&other, 30.0, &mut rng));
+    assert!(alone > joined, "outside the cluster reported at analysis {alone}, inside at {joined}");
+}
