@@ -427,8 +427,14 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     for g in groups.iter() {
         let allowed = 2.0 * bin_hz + rate_hz_per_hz * g.hz;
         let prior = history.age_of(g.hz, g.amplitude, allowed);
-        // Hysteresis: a comb already reported continues at half the quality that starts one.
-        let min_quality = if prior >= MIN_AGE {
+        // Hysteresis: a comb already reported, or one in the rotor cluster of one reported in
+        // the previous analysis (another rotor pair of the same airframe), continues at half
+        // the quality that starts one.
+        let in_cluster = (0..history.count).any(|i| {
+            history.age[i] >= MIN_AGE
+                && libm::fabsf(history.hz[i] - g.hz) <= CLUSTER * history.hz[i]
+        });
+        let min_quality = if prior >= MIN_AGE || in_cluster {
             HOLD_QUALITY * config.bpf_min_quality
         } else {
             config.bpf_min_quality
