@@ -97,7 +97,7 @@ impl Decimator {
     /// Feeds a block of mono samples (`input[i] · scale`), calling `out` with every output
     /// sample; the same results as [`Decimator::push`] per sample, with the state in registers.
     pub fn push_block(&mut self, input: &[i32], scale: f32, out: &mut impl FnMut(f32)) {
-        let (len, factor) = (self.len, self.factor);
+        let factor = self.factor;
         let mut rest = input;
         while !rest.is_empty() {
             self.make_room();
