@@ -3,16 +3,13 @@
 //! The mean of all microphones is low-pass filtered and decimated to [`DECIMATED_RATE_HZ`]
 //! (windowed-sinc FIR, Blackman window, polyphase: one output per `factor` inputs). Every
 //! [`ANALYSIS_HOP`] decimated samples the last [`ANALYSIS_LEN`] (0.512 s, Hann window) are
-//! transformed (microfft `rfft_4096`, 1.95 Hz bins). Fundamental candidates are spectral peaks
-//! in the BPF search range standing `peak_floor_ratio` above the mean level of the band; each
-//! collects its harmonics (the strongest bin within ±1 of h·f, if it is a local maximum), every
-//! peak refined below one bin by the Hann-window ratio estimator (Grandke):
-//! δ = (2α − 1)/(α + 1), α = |X(k±1)| / |X(k)|, exact for a lone tone. The group's frequency is
-//! the amplitude-weighted mean of f_h / h. Groups are ranked by the sum of their harmonic
-//! amplitudes; a group at an integer multiple or sub-multiple of a stronger one is a harmonic of
-//! it and is dropped.
+//! transformed (microfft `rfft_4096`, 1.95 Hz bins), every peak refined below one bin by the
+//! Hann-window ratio estimator (Grandke): δ = (2α − 1)/(α + 1), α = |X(k±1)| / |X(k)|, exact
+//! for a lone tone. The spectrum is whitened against a noise floor that follows its tilt and
+//! searched for rotor combs with a detection test and continuity over analyses
+//! ([`crate::comb`]); when nothing passes, the `Peaks` output says "no rotor signature".
 
-use crate::{Config, Peak, Peaks, MAX_HARMONICS};
+use crate::{Config, Peaks};
 
 /// Sample rate of the decimated mono signal, Hz.
 pub const DECIMATED_RATE_HZ: u32 = 8_000;
@@ -28,10 +25,8 @@ const TAPS_PER_FACTOR: usize = 16;
 const CUTOFF_HZ: f32 = 3500.0;
 /// Highest harmonic frequency analysed, Hz (the anti-alias filter rolls off above it).
 pub const MAX_ANALYSIS_HZ: f32 = 3800.0;
-/// Lowest frequency in the band level estimate, Hz.
-const FLOOR_LOW_HZ: f32 = 100.0;
-/// Most fundamental candidates examined per analysis.
-const MAX_CANDIDATES: usize = 16;
+/// Lowest frequency of the noise-floor estimate and the whitened spectrum, Hz.
+const FLOOR_LOW_HZ: f32 = 40.0;
 
 /// Polyphase FIR decimator.
 #[derive(Debug, Clone)]
@@ -39,9 +34,11 @@ pub struct Decimator {
     taps: [f32; MAX_TAPS],
     len: usize,
     factor: usize,
-    /// Delay line written twice (at i and i + len) so the dot product never wraps.
+    /// Delay line, appended at `end`: `line[end - len..end]` holds the last `len` inputs,
+    /// oldest first. When full, the last `len` move to the front (one copy per
+    /// `2·MAX_TAPS − len` inputs instead of two writes per input).
     line: [f32; 2 * MAX_TAPS],
-    pos: usize,
+    end: usize,
     phase: usize,
 }
 
@@ -53,7 +50,7 @@ impl Decimator {
             len: 1,
             factor: 1,
             line: [0.0; 2 * MAX_TAPS],
-            pos: 0,
+            end: 1,
             phase: 0,
         }
     }
@@ -83,7 +80,7 @@ impl Decimator {
         self.len = len;
         self.factor = factor;
         self.line = [0.0; 2 * MAX_TAPS];
-        self.pos = 0;
+        self.end = len;
         self.phase = 0;
     }
 
@@ -100,32 +97,45 @@ impl Decimator {
     /// Feeds a block of mono samples (`input[i] · scale`), calling `out` with every output
     /// sample; the same results as [`Decimator::push`] per sample, with the state in registers.
     pub fn push_block(&mut self, input: &[i32], scale: f32, out: &mut impl FnMut(f32)) {
-        let (len, factor) = (self.len, self.factor);
-        let (mut pos, mut phase) = (self.pos, self.phase);
-        for &m in input {
-            let x = m as f32 * scale;
-            self.line[pos] = x;
-            self.line[pos + len] = x;
-            pos += 1;
-            if pos == len {
-                pos = 0;
+        let factor = self.factor;
+        let mut rest = input;
+        while !rest.is_empty() {
+            self.make_room();
+            // Append as many inputs as fit, then the outputs whose windows end among them
+            // (appending never overwrites a window still to be read).
+            let start = self.end;
+            let run = rest.len().min(self.line.len() - start);
+            let (now, later) = rest.split_at(run);
+            for (d, &m) in self.line[start..start + run].iter_mut().zip(now) {
+                *d = m as f32 * scale;
             }
-            phase += 1;
-            if phase == factor {
-                phase = 0;
-                out(self.output(pos));
+            self.end = start + run;
+            let mut next = start + (factor - self.phase);
+            while next <= self.end {
+                out(self.output(next));
+                next += factor;
             }
+            self.phase = (self.phase + run) % factor;
+            rest = later;
         }
-        self.pos = pos;
-        self.phase = phase;
     }
 
-    /// The filter output for the delay line ending before `pos`.
+    /// Moves the last `len` inputs to the front of a full delay line.
     #[inline]
-    fn output(&self, pos: usize) -> f32 {
-        // line[pos .. pos + len] holds the last `len` inputs, oldest first. The taps are
+    fn make_room(&mut self) {
+        if self.end == self.line.len() {
+            let len = self.len;
+            self.line.copy_within(self.end - len..self.end, 0);
+            self.end = len;
+        }
+    }
+
+    /// The filter output for the window ending before `end`.
+    #[inline]
+    fn output(&self, end: usize) -> f32 {
+        // line[end - len .. end] holds the last `len` inputs, oldest first. The taps are
         // symmetric (linear phase): fold the window and multiply each tap once.
-        let window = &self.line[pos..pos + self.len];
+        let window = &self.line[end - self.len..end];
         let half = self.len / 2;
         let (head, tail) = window.split_at(self.len - half);
         let mut acc = if self.len % 2 == 1 { head[half] * self.taps[half] } else { 0.0 };
@@ -148,18 +158,15 @@ impl Decimator {
     /// Feeds one input sample; returns an output sample every `factor` inputs.
     #[inline]
     pub fn push(&mut self, x: f32) -> Option<f32> {
-        self.line[self.pos] = x;
-        self.line[self.pos + self.len] = x;
-        self.pos += 1;
-        if self.pos == self.len {
-            self.pos = 0;
-        }
+        self.make_room();
+        self.line[self.end] = x;
+        self.end += 1;
         self.phase += 1;
         if self.phase < self.factor {
             return None;
         }
         self.phase = 0;
-        Some(self.output(self.pos))
+        Some(self.output(self.end))
     }
 }
 
@@ -174,6 +181,8 @@ pub struct SpectralPath {
     /// Decimated samples produced since configuration.
     produced: u64,
     since_analysis: usize,
+    /// Passing groups of the previous analysis.
+    history: crate::comb::History,
 }
 
 impl SpectralPath {
@@ -186,6 +195,7 @@ impl SpectralPath {
             write: 0,
             produced: 0,
             since_analysis: 0,
+            history: crate::comb::History::new(),
         }
     }
 
@@ -198,6 +208,7 @@ impl SpectralPath {
         self.write = 0;
         self.produced = 0;
         self.since_analysis = 0;
+        self.history = crate::comb::History::new();
     }
 
     /// Feeds a block of mono samples (`mono[i] · scale`, fraction of full scale). Returns true
@@ -250,7 +261,7 @@ impl SpectralPath {
     /// Windows the last [`ANALYSIS_LEN`] samples into `scratch`, transforms, finds peak groups.
     /// `tw`: the phasor table ([`crate::gcc_phat::Twiddles::new`]) for the window.
     pub fn analyze(
-        &self,
+        &mut self,
         config: &Config,
         scratch: &mut [f32; ANALYSIS_LEN],
         tw: &crate::gcc_phat::Twiddles,
@@ -259,99 +270,43 @@ impl SpectralPath {
         scratch[..new.len()].copy_from_slice(new);
         scratch[new.len()..].copy_from_slice(old);
         crate::window::apply_hann(scratch, tw);
-        let mut peaks = find_peaks(scratch, config);
+        let mut peaks = find_peaks(scratch, config, &mut self.history);
         peaks.sample_index = self.window_start_sample();
         peaks.span_samples = self.window_span_samples();
         peaks
     }
 }
 
-/// Transforms a windowed [`ANALYSIS_LEN`]-sample buffer (decimated rate) and finds up to four
-/// peak groups. On return `buf[..ANALYSIS_LEN / 2]` holds the magnitude spectrum.
-pub fn find_peaks(buf: &mut [f32; ANALYSIS_LEN], config: &Config) -> Peaks {
+/// Transforms a windowed [`ANALYSIS_LEN`]-sample buffer (decimated rate), whitens the
+/// spectrum and finds the rotor groups ([`crate::comb`]); `history` carries the passing groups
+/// from one analysis to the next. On return `buf[..ANALYSIS_LEN / 2]` holds the magnitude
+/// spectrum up to [`MAX_ANALYSIS_HZ`] (0 above) and `buf[ANALYSIS_LEN / 2..]` the whitened
+/// levels.
+pub fn find_peaks(
+    buf: &mut [f32; ANALYSIS_LEN],
+    config: &Config,
+    history: &mut crate::comb::History,
+) -> Peaks {
     {
         let spectrum = microfft::real::rfft_4096(buf);
         spectrum[0].im = 0.0; // the Nyquist bin is packed here; it is outside every band used
     }
-    // Magnitudes in place: bin k reads buf[2k], buf[2k+1] and writes buf[k] ≤ 2k.
-    for k in 0..ANALYSIS_LEN / 2 {
+    let bin_hz = DECIMATED_RATE_HZ as f32 / ANALYSIS_LEN as f32;
+    let top = ((MAX_ANALYSIS_HZ / bin_hz) as usize).min(ANALYSIS_LEN / 2 - 2);
+    // Magnitudes in place, up to the analysed band: bin k reads buf[2k], buf[2k+1] and writes
+    // buf[k] ≤ 2k.
+    for k in 0..top + 2 {
         let (re, im) = (buf[2 * k], buf[2 * k + 1]);
         let p = re * re + im * im;
         buf[k] = if p > 0.0 { p * crate::gcc_phat::rsqrt(p) } else { 0.0 };
     }
-    let mags = &buf[..ANALYSIS_LEN / 2];
-    let bin_hz = DECIMATED_RATE_HZ as f32 / ANALYSIS_LEN as f32;
-    let top = ((MAX_ANALYSIS_HZ / bin_hz) as usize).min(mags.len() - 2);
+    buf[top + 2..ANALYSIS_LEN / 2].fill(0.0);
+    let (mags, white) = buf.split_at_mut(ANALYSIS_LEN / 2);
     let low = (FLOOR_LOW_HZ / bin_hz) as usize;
-    let floor = mags[low..top].iter().sum::<f32>() / (top - low) as f32;
-    let threshold = config.peak_floor_ratio * floor;
-
-    // Fundamental candidates: local maxima above the threshold, strongest kept.
-    let mut cands = [(0usize, 0.0f32); MAX_CANDIDATES];
-    let mut n_cands = 0usize;
-    let k_min = (libm::floorf(config.bpf_min_hz / bin_hz) as usize).max(2);
-    let k_max = (libm::ceilf(config.bpf_max_hz / bin_hz) as usize).min(top);
-    for k in k_min..=k_max {
-        let m = mags[k];
-        if m > threshold && m >= mags[k - 1] && m > mags[k + 1] {
-            insert_strongest(&mut cands, &mut n_cands, (k, m));
-        }
-    }
-    // Harmonic groups of the candidates.
-    let mut groups = [Group::default(); MAX_CANDIDATES];
-    for (g, &(k, _)) in groups.iter_mut().zip(&cands[..n_cands]) {
-        *g = harmonic_group(mags, k, bin_hz, top, config.harmonics, threshold * 0.5);
-    }
-    let groups = &mut groups[..n_cands];
-    groups.sort_unstable_by(|a, b| b.score.total_cmp(&a.score));
-
-    let mut out = Peaks::default();
-    let best = groups.first().map_or(0.0, |g| g.score);
-    let tolerance = 2.0 * bin_hz;
-    for g in groups.iter() {
-        if out.count as usize == out.peaks.len()
-            || g.score < config.peak_relative_score * best
-            || g.score <= 0.0
-        {
-            break;
-        }
-        let related = out.peaks[..out.count as usize].iter().any(|a| {
-            let (lo, hi) = if g.hz > a.hz { (a.hz, g.hz) } else { (g.hz, a.hz) };
-            let n = libm::roundf(hi / lo);
-            libm::fabsf(hi - n * lo) < tolerance * n.max(1.0)
-        });
-        if !related {
-            out.peaks[out.count as usize] =
-                Peak { hz: g.hz, amplitude: g.amplitude, harmonicity: g.harmonicity };
-            out.count += 1;
-        }
-    }
-    out.bpf_hz = out.peaks[0].hz;
-    out
-}
-
-fn insert_strongest(cands: &mut [(usize, f32); MAX_CANDIDATES], n: &mut usize, c: (usize, f32)) {
-    if *n < cands.len() {
-        cands[*n] = c;
-        *n += 1;
-        return;
-    }
-    let (weakest, _) =
-        cands
-            .iter()
-            .enumerate()
-            .fold((0, f32::INFINITY), |acc, (i, x)| if x.1 < acc.1 { (i, x.1) } else { acc });
-    if cands[weakest].1 < c.1 {
-        cands[weakest] = c;
-    }
-}
-
-#[derive(Debug, Clone, Copy, Default)]
-struct Group {
-    hz: f32,
-    amplitude: f32,
-    harmonicity: f32,
-    score: f32,
+    crate::comb::whiten(mags, white, low, top);
+    let spec = crate::comb::Spectrum { mags, white, bin_hz, top };
+    let hop_s = ANALYSIS_HOP as f32 / DECIMATED_RATE_HZ as f32;
+    crate::comb::detect(&spec, config, hop_s, history)
 }
 
 /// Refines a spectral peak at bin `k`: (fractional bin, amplitude of the sinusoid in the
@@ -386,48 +341,6 @@ fn sin_half_turn(x: f32) -> f32 {
     let x2 = x * x;
     x * (1.0
         - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))))
-}
-
-fn harmonic_group(
-    mags: &[f32],
-    k: usize,
-    bin_hz: f32,
-    top: usize,
-    harmonics: usize,
-    threshold: f32,
-) -> Group {
-    let (b1, a1) = refine_peak(mags, k);
-    let f1 = b1 * bin_hz;
-    let (mut num, mut den, mut found, mut expected) = (0.0f32, 0.0f32, 0u32, 0u32);
-    for h in 1..=harmonics.min(MAX_HARMONICS) {
-        let centre = h as f32 * b1;
-        let c = libm::roundf(centre) as usize;
-        if c + 2 > top {
-            break;
-        }
-        expected += 1;
-        let kk = (c - 1..=c + 1).fold(c, |best, i| if mags[i] > mags[best] { i } else { best });
-        let is_peak = mags[kk] >= mags[kk - 1] && mags[kk] >= mags[kk + 1] && mags[kk] > threshold;
-        if !is_peak {
-            continue;
-        }
-        let (bh, ah) = refine_peak(mags, kk);
-        if libm::fabsf(bh - centre) > 1.5 {
-            continue;
-        }
-        num += ah * bh * bin_hz / h as f32;
-        den += ah;
-        found += 1;
-    }
-    if den <= 0.0 {
-        return Group { hz: f1, amplitude: a1, harmonicity: 0.0, score: 0.0 };
-    }
-    Group {
-        hz: num / den,
-        amplitude: a1,
-        harmonicity: found as f32 / expected.max(1) as f32,
-        score: den,
-    }
 }
 
 #[cfg(test)]
@@ -508,7 +421,7 @@ mod tests {
             }
             crate::window::apply_hann(&mut buf, &crate::gcc_phat::Twiddles::new());
             let config = Config::new(crate::Geometry::respeaker_4mic(), 48_000);
-            let _ = find_peaks(&mut buf, &config); // leaves the magnitudes in buf
+            let _ = find_peaks(&mut buf, &config, &mut crate::comb::History::new()); // leaves the magnitudes in buf
             let k = (199..=201).max_by(|&a, &b| buf[a].total_cmp(&buf[b])).unwrap();
             let (b, amp) = refine_peak(&buf[..ANALYSIS_LEN / 2], k);
             assert!((b - bin).abs() < 2e-3, "offset {offset}: bin {b}");

@@ -31,18 +31,27 @@ pub struct Config {
     pub average_blocks: u32,
     /// Speed of sound, m/s. Default 343 (20 °C).
     pub speed_of_sound_m_s: f32,
-    /// Lowest blade-passing frequency searched, Hz. Default 100.
+    /// Lowest blade-passing frequency searched, Hz. Default 140 (indoor drones: 150–700 Hz;
+    /// desk and ceiling fans, whose steady five-blade combs are rotors too, 50–120 Hz; lower
+    /// it for large propellers).
     pub bpf_min_hz: f32,
     /// Highest blade-passing frequency searched, Hz. Default 1000.
     pub bpf_max_hz: f32,
     /// Harmonics (including the fundamental) used per BPF peak group. Default 8.
     pub harmonics: usize,
-    /// A BPF fundamental must stand this many times above the mean spectral level of the
-    /// 100 Hz – 4 kHz band. Default 6.
+    /// A BPF candidate line must stand this many times above the local noise floor (the
+    /// whitened spectrum, [`crate::comb`]). Default 5.
     pub peak_floor_ratio: f32,
     /// A further peak group must reach this fraction of the strongest group's harmonic
     /// score. Default 0.1.
     pub peak_relative_score: f32,
+    /// Lowest detection quality of a reported rotor group, 0–1 ([`crate::Peak::quality`]).
+    /// Default 0.35.
+    pub bpf_min_quality: f32,
+    /// Fastest relative change of a rotor's BPF between analyses that still continues a group,
+    /// per second. Default 0.1 (10 %/s: 2.6 % per 0.256 s hop, under a semitone's 6 %: a
+    /// melody's steps do not continue a group).
+    pub bpf_max_rate_per_s: f32,
     /// Blocks between two `Health` outputs. Default 48 (about 1 s at 48 kHz / 1024).
     pub health_interval_blocks: u32,
 }
@@ -70,11 +79,13 @@ impl Config {
             band_high_hz: 6000.0,
             average_blocks: 8,
             speed_of_sound_m_s: 343.0,
-            bpf_min_hz: 100.0,
+            bpf_min_hz: 140.0,
             bpf_max_hz: 1000.0,
             harmonics: 8,
-            peak_floor_ratio: 6.0,
+            peak_floor_ratio: 5.0,
             peak_relative_score: 0.1,
+            bpf_min_quality: 0.35,
+            bpf_max_rate_per_s: 0.1,
             health_interval_blocks: 48,
         }
     }
@@ -142,6 +153,12 @@ impl Config {
         }
         if !(self.peak_relative_score.is_finite() && self.peak_relative_score > 0.0) {
             return Err(ConfigError::Tunable("peak_relative_score"));
+        }
+        if !(self.bpf_min_quality.is_finite() && (0.0..=1.0).contains(&self.bpf_min_quality)) {
+            return Err(ConfigError::Tunable("bpf_min_quality"));
+        }
+        if !(self.bpf_max_rate_per_s.is_finite() && self.bpf_max_rate_per_s > 0.0) {
+            return Err(ConfigError::Tunable("bpf_max_rate_per_s"));
         }
         if self.health_interval_blocks == 0 {
             return Err(ConfigError::Tunable("health_interval_blocks"));

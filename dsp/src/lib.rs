@@ -15,7 +15,8 @@
 //!
 //! Stages (one module each): [`frontend`] (TDM words → Q31 → DC removal → Q15 with a block
 //! exponent), [`gcc_phat`] (PHAT cross spectra, lag search, sub-sample refinement),
-//! [`doa`] (least-squares direction), [`bpf`] (decimation, long spectrum, peak groups),
+//! [`doa`] (least-squares direction), [`bpf`] (decimation, long spectrum), [`comb`] (whitening,
+//! rotor combs, detection),
 //! [`features`] (drone-identification features: log-mel, MFCC, BPF harmonics),
 //! [`pipeline`] (the streaming glue).
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
@@ -23,6 +24,7 @@
 #![warn(missing_docs)]
 
 pub mod bpf;
+pub mod comb;
 mod config;
 pub mod doa;
 mod error;

@@ -39,15 +39,22 @@ pub struct Doa {
 pub struct Peak {
     /// Fundamental frequency: amplitude-weighted mean of (harmonic frequency / harmonic number), Hz.
     pub hz: f32,
-    /// Amplitude of the fundamental, fraction of microphone full scale (mean over microphones).
+    /// Level of the group: root-sum-square of the amplitudes of its harmonic lines found in the
+    /// spectrum ([`crate::comb`]), fraction of microphone full scale (mean over microphones).
     pub amplitude: f32,
     /// Fraction of the expected harmonics (within the analysed band) found as spectral peaks, 0–1.
     pub harmonicity: f32,
+    /// Detection quality, 0–1: harmonicity · score / (score + 30), score the sum of the found
+    /// lines' levels over the local noise floor (each capped at 40); see [`crate::comb`].
+    pub quality: f32,
 }
 
-/// Up to four BPF peak groups, strongest harmonic score first.
+/// Up to four BPF peak groups, strongest harmonic score first, or "no rotor signature".
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Peaks {
+    /// A rotor signature passed the detection test (`count` > 0); false: no rotor signature,
+    /// no BPF, no groups.
+    pub rotor: bool,
     /// Index of the (input-rate) sample at which the analysis window starts.
     pub sample_index: u64,
     /// Input-rate samples covered by the analysis window.
@@ -56,7 +63,7 @@ pub struct Peaks {
     pub bpf_hz: f32,
     /// Valid entries in `peaks`.
     pub count: u8,
-    /// Peak groups; entries past `count` are zero.
+    /// Peak groups (one per resolvable rotor speed); entries past `count` are zero.
     pub peaks: [Peak; 4],
 }
 

@@ -22,6 +22,7 @@ use rand::{rngs::StdRng, Rng, SeedableRng};
 
 pub mod air;
 pub mod array;
+pub mod bpf_bench;
 pub mod drones;
 pub mod eval;
 pub mod filter;

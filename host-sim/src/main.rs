@@ -24,6 +24,8 @@ enum Command {
     Bench(cmd::bench::Args),
     /// Write a labelled dataset of simulated drone and no-drone recordings for `aim id`.
     IdDataset(cmd::id_dataset::Args),
+    /// Score the BPF detector on realistic simulated drones and non-drone sources.
+    BpfBench(cmd::bpf_bench::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -33,6 +35,7 @@ fn main() -> std::process::ExitCode {
         Command::Fly(args) => cmd::fly::run(args),
         Command::Bench(args) => cmd::bench::run(args),
         Command::IdDataset(args) => cmd::id_dataset::run(args),
+        Command::BpfBench(args) => cmd::bpf_bench::run(args),
     };
     aim_tracker::exit::exit_code(result)
 }

@@ -58,6 +58,8 @@ fn main() -> std::io::Result<()> {
                 span_samples: 24_576,
                 bpf_chz: (bpf * 100.0) as u32,
                 peaks: [Peak::new(bpf, -20.0, 0.9)].into_iter().collect(),
+                detection: aim_wire::Detection::Rotor,
+                quality: [230].into_iter().collect(),
             };
             put(&mut file, index, Body::Peaks(peaks))?;
             next[1] += peaks_step;

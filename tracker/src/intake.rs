@@ -475,7 +475,8 @@ fn input_of(array_id: u16, body: &Body, t: f64) -> Option<Input> {
             peaks: p
                 .peaks
                 .iter()
-                .filter(|q| q.freq_hz() > 0.0)
+                // "No rotor signature": no groups (the chip's detection decision stands).
+                .filter(|q| p.is_rotor() && q.freq_hz() > 0.0)
                 .map(|q| BpfPeak {
                     hz: f64::from(q.freq_hz()),
                     amplitude: 10f64.powf(f64::from(q.amplitude_db()) / 20.0),
@@ -515,7 +516,13 @@ mod tests {
         let mut peaks = heapless::Vec::new();
         peaks.push(Peak::new(328.25, -20.0, 1.0)).unwrap();
         // A Peaks frame of 0.5 s ending with the next Doa: stamped before it.
-        let p = Peaks { span_samples: 8000, bpf_chz: 32825, peaks };
+        let p = Peaks {
+            span_samples: 8000,
+            bpf_chz: 32825,
+            peaks,
+            detection: aim_wire::Detection::Rotor,
+            quality: [200].into_iter().collect(),
+        };
         collect(&mut intake, &doa(17_600), &mut out);
         collect(&mut intake, &Frame { header: header(11_200), body: Body::Peaks(p) }, &mut out);
         intake.finish(&mut |r| out.push(r));
@@ -544,6 +551,29 @@ mod tests {
         collect(&mut intake, &stranger, &mut out);
         assert_eq!(intake.stats().unknown_array, 1);
         assert_eq!(intake.stats().hellos, 1);
+    }
+
+    #[test]
+    fn a_frame_without_rotor_signature_carries_no_groups() {
+        let mut peaks = heapless::Vec::new();
+        peaks.push(Peak::new(328.25, -20.0, 1.0)).unwrap();
+        let p = Peaks {
+            span_samples: 8000,
+            bpf_chz: 32825,
+            peaks,
+            detection: aim_wire::Detection::Rotor,
+            quality: [200].into_iter().collect(),
+        };
+        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(p.clone()), 0.0) else { panic!() };
+        assert_eq!(s.peaks.len(), 1);
+        let none = Peaks { detection: aim_wire::Detection::NoRotor, ..p.clone() };
+        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(none), 0.0) else { panic!() };
+        assert!(s.peaks.is_empty(), "no rotor signature carries no groups");
+        // An older frame (no decision) with a BPF still counts as a rotor.
+        let older =
+            Peaks { detection: aim_wire::Detection::Unstated, quality: heapless::Vec::new(), ..p };
+        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(older), 0.0) else { panic!() };
+        assert_eq!(s.peaks.len(), 1);
     }
 
     #[test]

@@ -275,6 +275,8 @@ fn random_frame() -> impl Strategy<Value = Frame> {
                 span_samples: span,
                 bpf_chz: hz,
                 peaks: [peak].into_iter().collect(),
+                detection: aim_wire::Detection::Rotor,
+                quality: [230].into_iter().collect(),
             })
         }),
         prop_oneof![Just(48_000u32), any::<u32>()].prop_map(|rate| Body::Hello(Hello::new(

@@ -27,6 +27,8 @@ fn frames(n: u16) -> Vec<Frame> {
                     peaks: [Peak::new(180.0, -20.0, 0.9), Peak::new(240.5, -31.0, 0.5)]
                         .into_iter()
                         .collect(),
+                    detection: aim_wire::Detection::Rotor,
+                    quality: [200, 90].into_iter().collect(),
                 }),
                 _ => Body::Health(Health { blocks: u32::from(seq) * 8, ..Health::default() }),
             };

@@ -43,9 +43,18 @@ fn arb_body() -> impl Strategy<Value = Body> {
         any::<u32>(),
         any::<u32>(),
         prop::collection::vec(prop_oneof![peak, bpf_peak], 0..=aim_wire::MAX_PEAKS),
+        0..3usize,
+        prop::collection::vec(any::<u8>(), 0..=aim_wire::MAX_PEAKS),
     )
-        .prop_map(|(span_samples, bpf_chz, list)| {
-            Body::Peaks(Peaks { span_samples, bpf_chz, peaks: list.into_iter().collect() })
+        .prop_map(|(span_samples, bpf_chz, list, detection, quality)| {
+            use aim_wire::Detection;
+            Body::Peaks(Peaks {
+                span_samples,
+                bpf_chz,
+                peaks: list.into_iter().collect(),
+                detection: [Detection::Unstated, Detection::NoRotor, Detection::Rotor][detection],
+                quality: quality.into_iter().collect(),
+            })
         });
     let hello = (8_000u32..=192_000, any::<u16>(), prop::collection::vec(any::<[i16; 2]>(), 0..=8))
         .prop_map(|(rate, block_len, mics)| {

@@ -156,7 +156,7 @@ fn decode_body(kind: Kind, payload: &[u8]) -> Result<Body, DecodeError> {
     Ok(match kind {
         Kind::Hello => Body::Hello(crate::Hello::from_payload(payload).map_err(err)?),
         Kind::Doa => Body::Doa(postcard::take_from_bytes(payload).map_err(err)?.0),
-        Kind::Peaks => Body::Peaks(postcard::take_from_bytes(payload).map_err(err)?.0),
+        Kind::Peaks => Body::Peaks(crate::Peaks::from_payload(payload).map_err(err)?),
         Kind::Health => Body::Health(crate::Health::from_payload(payload).map_err(err)?),
     })
 }

@@ -96,7 +96,8 @@ impl Kind {
             // span u32 5 + azimuth i16 3 + zenith u16 3 + residual u16 3 + quality 1 + pairs 1
             Kind::Doa => 5 + 3 + 3 + 3 + 1 + 1,
             // span u32 5 + bpf u32 5 + count 1 + 4 x (hz u32 5 + amplitude i16 3 + harmonicity 1)
-            Kind::Peaks => 5 + 5 + 1 + MAX_PEAKS * (5 + 3 + 1),
+            // + detection 1 + count 1 + 4 x quality 1 (appended)
+            Kind::Peaks => 5 + 5 + 1 + MAX_PEAKS * (5 + 3 + 1) + 1 + 1 + MAX_PEAKS,
             // blocks, clipped u32 5 each + peak i16 3 + exponent i8 1
             // + cycles, overruns, dropped u32 5 each + queue depth 1 + 9 loss counters u32 5 each
             // + microphone count 1 + 8 x (rms, dc) i16 3 each
@@ -559,7 +560,8 @@ fn wrap_degrees(deg: f32) -> f32 {
 pub struct Peak {
     /// Frequency, units of 0.01 Hz.
     pub freq_chz: u32,
-    /// Amplitude of the fundamental, units of 0.1 dB relative to microphone full scale
+    /// Level of the group (root-sum-square amplitude of its harmonic lines; older firmware: the
+    /// fundamental's amplitude), units of 0.1 dB relative to microphone full scale
     /// (dBFS; -3276.8 dB stands for silence).
     pub amplitude_ddb: i16,
     /// Harmonicity in [0, 1], units of 1/255.
@@ -592,6 +594,20 @@ impl Peak {
     }
 }
 
+/// The chip's rotor-signature decision in a [`Peaks`] frame (appended field: frames of
+/// firmware that did not decide carry none and decode as [`Detection::Unstated`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Detection {
+    /// The frame does not say (written before the detection test existed): `bpf_chz` and
+    /// `peaks` are whatever the old estimator found.
+    #[default]
+    Unstated,
+    /// No rotor signature passed the detection test: no BPF, no groups.
+    NoRotor,
+    /// A rotor signature passed the test: `bpf_chz` and `peaks` are its groups.
+    Rotor,
+}
+
 /// Blade-passing frequency estimate and the strongest peak groups (aim-dsp defaults: one per
 /// 2048 samples decimated to 8 kHz, 3.9/s). The header's sample index is where the analysis
 /// window starts.
@@ -603,12 +619,72 @@ pub struct Peaks {
     pub bpf_chz: u32,
     /// Up to [`MAX_PEAKS`] peaks, strongest first.
     pub peaks: heapless::Vec<Peak, MAX_PEAKS>,
+    /// Rotor signature or not (appended; absent in older frames).
+    pub detection: Detection,
+    /// Detection quality of each peak group in [0, 1], units of 1/255, in the order of
+    /// `peaks` (appended; empty in older frames).
+    pub quality: heapless::Vec<u8, MAX_PEAKS>,
+}
+
+/// The fields of [`Peaks`] before the appended ones: what older frames carry.
+#[derive(Deserialize)]
+struct PeaksBase {
+    pub span_samples: u32,
+    pub bpf_chz: u32,
+    pub peaks: heapless::Vec<Peak, MAX_PEAKS>,
+}
+
+/// The appended fields of [`Peaks`].
+#[derive(Deserialize)]
+struct PeaksAppended {
+    pub detection: Detection,
+    pub quality: heapless::Vec<u8, MAX_PEAKS>,
 }
 
 impl Peaks {
+    /// Decodes a payload; the appended detection and qualities default when absent (older
+    /// firmware: [`Detection::Unstated`], no qualities).
+    pub(crate) fn from_payload(payload: &[u8]) -> postcard::Result<Peaks> {
+        let (base, appended, _) = base_and_appended::<PeaksBase, PeaksAppended>(payload)?;
+        let (detection, quality) =
+            appended.map_or_else(Default::default, |a| (a.detection, a.quality));
+        Ok(Peaks {
+            span_samples: base.span_samples,
+            bpf_chz: base.bpf_chz,
+            peaks: base.peaks,
+            detection,
+            quality,
+        })
+    }
+
+    /// A frame of the current layout with no groups: "no rotor signature".
+    pub fn no_rotor(span_samples: u32) -> Self {
+        Peaks {
+            span_samples,
+            bpf_chz: 0,
+            peaks: heapless::Vec::new(),
+            detection: Detection::NoRotor,
+            quality: heapless::Vec::new(),
+        }
+    }
+
     /// Blade-passing frequency, Hz (0 when none was found).
     pub fn bpf_hz(&self) -> f32 {
         self.bpf_chz as f32 * 0.01
+    }
+
+    /// Detection quality of group `i` in [0, 1], if the frame carries it.
+    pub fn quality_of(&self, i: usize) -> Option<f32> {
+        self.quality.get(i).map(|&q| f32::from(q) / 255.0)
+    }
+
+    /// Whether the frame reports a rotor: [`Detection::Rotor`], or an older frame with a BPF.
+    pub fn is_rotor(&self) -> bool {
+        match self.detection {
+            Detection::Rotor => true,
+            Detection::NoRotor => false,
+            Detection::Unstated => self.bpf_chz > 0,
+        }
     }
 }
 

@@ -13,7 +13,9 @@
 //! assert!(n > 0);
 //! ```
 
-use crate::frame::{Body, Doa, Health, Hello, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS};
+use crate::frame::{
+    Body, Detection, Doa, Health, Hello, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS,
+};
 use crate::{fixed, EncodeError, Encoder};
 
 /// What the firmware knows and the DSP does not; goes into [`Health`] frames. All zero in
@@ -77,14 +79,23 @@ fn dbfs(fraction: f32) -> f32 {
     }
 }
 
-/// BPF peak groups at 0.01 Hz and 0.1 dB resolution (at most `count`, at most [`MAX_PEAKS`]).
+/// BPF peak groups at 0.01 Hz and 0.1 dB resolution (at most `count`, at most [`MAX_PEAKS`])
+/// with their qualities, and the rotor-signature decision.
 pub fn peaks(p: &aim_dsp::Peaks) -> Peaks {
     let mut list = heapless::Vec::new();
+    let mut quality = heapless::Vec::new();
     for q in p.peaks.iter().take(usize::from(p.count).min(MAX_PEAKS)) {
         // Cannot fail: at most MAX_PEAKS are taken.
         let _ = list.push(Peak::new(q.hz, dbfs(q.amplitude), q.harmonicity));
+        let _ = quality.push(fixed::to_u8(q.quality, 255.0));
     }
-    Peaks { span_samples: p.span_samples, bpf_chz: fixed::to_u32(p.bpf_hz, 100.0), peaks: list }
+    Peaks {
+        span_samples: p.span_samples,
+        bpf_chz: fixed::to_u32(p.bpf_hz, 100.0),
+        peaks: list,
+        detection: if p.rotor { Detection::Rotor } else { Detection::NoRotor },
+        quality,
+    }
 }
 
 /// DSP health and firmware counters together.
@@ -169,15 +180,16 @@ mod tests {
     #[test]
     fn peaks_amplitude_becomes_dbfs() {
         let mut p = aim_dsp::Peaks {
+            rotor: true,
             sample_index: 0,
             span_samples: 24_576,
             bpf_hz: 187.5,
             count: 2,
             peaks: [aim_dsp::Peak::default(); 4],
         };
-        p.peaks[0] = aim_dsp::Peak { hz: 187.5, amplitude: 0.1, harmonicity: 0.75 };
-        p.peaks[1] = aim_dsp::Peak { hz: 250.0, amplitude: 0.0, harmonicity: 0.5 };
-        p.peaks[2] = aim_dsp::Peak { hz: 999.0, amplitude: 0.5, harmonicity: 1.0 };
+        p.peaks[0] = aim_dsp::Peak { hz: 187.5, amplitude: 0.1, harmonicity: 0.75, quality: 0.6 };
+        p.peaks[1] = aim_dsp::Peak { hz: 250.0, amplitude: 0.0, harmonicity: 0.5, quality: 0.4 };
+        p.peaks[2] = aim_dsp::Peak { hz: 999.0, amplitude: 0.5, harmonicity: 1.0, quality: 1.0 };
         let w = peaks(&p);
         assert_eq!(w.bpf_chz, 18_750);
         assert_eq!(w.peaks.len(), 2, "entries past count are not sent");
@@ -185,6 +197,9 @@ mod tests {
         assert_eq!(w.peaks[0].harmonicity, 191); // 0.75 * 255 = 191.25
         assert_eq!(w.peaks[1].amplitude_ddb, i16::MIN, "silence");
         assert_eq!(w.span_samples, 24_576);
+        assert_eq!((w.detection, w.quality.as_slice()), (Detection::Rotor, &[153u8, 102][..]));
+        let none = peaks(&aim_dsp::Peaks { span_samples: 24_576, ..Default::default() });
+        assert_eq!(none, Peaks::no_rotor(24_576), "no rotor signature: no BPF, no groups");
     }
 
     #[test]

@@ -105,8 +105,8 @@ pub use crc32::crc32;
 pub use deframe::{decode, DecodeError, Deframer, Feed, LinkStats, DEFAULT_CAPACITY};
 pub use encode::{encode, EncodeError, Encoder};
 pub use frame::{
-    derived_array_id, reserved, stm32h7_revision_name, Body, ClockSource, Doa, Frame, Header,
-    Health, Hello, Kind, MicLevels, Peak, Peaks, ResetCause, MAX_MICS, MAX_PANIC_MESSAGE,
+    derived_array_id, reserved, stm32h7_revision_name, Body, ClockSource, Detection, Doa, Frame,
+    Header, Health, Hello, Kind, MicLevels, Peak, Peaks, ResetCause, MAX_MICS, MAX_PANIC_MESSAGE,
     MAX_PEAKS, UNIQUE_ID_LEN,
 };
 

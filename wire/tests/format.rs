@@ -41,7 +41,7 @@ fn max_encoded_size_per_kind() {
     let expected = [
         (Kind::Hello, 156, 159),
         (Kind::Doa, 36, 39),
-        (Kind::Peaks, 67, 70),
+        (Kind::Peaks, 73, 76),
         (Kind::Health, 144, 147),
     ];
     for (kind, raw_len, wire_len) in expected {
@@ -463,4 +463,30 @@ fn bodies_report_their_kind() {
         );
         assert!(matches, "{kind:?}");
     }
+}
+
+#[test]
+fn peaks_of_older_firmware_decode_with_unstated_detection() {
+    // A Peaks payload that ends after its group list (written before detection and quality
+    // were appended) decodes with the appended fields at their defaults (rule 3).
+    let frame = &sample_frames()[2];
+    let Body::Peaks(p) = &frame.body else { panic!("sample frame 2 is a Peaks") };
+    let body = strip_crc(&raw(frame)).to_vec();
+    let appended = 1 + 1 + p.quality.len(); // detection, quality count, qualities
+    let old = &body[..body.len() - appended];
+    let (out, stats) = deframe_all(&reframe(old));
+    let Ok(Frame { body: Body::Peaks(q), .. }) = &out[0] else { panic!("{out:?}") };
+    assert_eq!((q.detection, q.quality.len()), (aim_wire::Detection::Unstated, 0));
+    assert_eq!((q.bpf_chz, &q.peaks), (p.bpf_chz, &p.peaks));
+    assert!(q.is_rotor() && p.is_rotor() && stats.malformed == 0);
+    // The snapshot of that frame's bytes as older firmware sent them decodes the same way.
+    let golden = std::fs::read_to_string(format!("{GOLDEN_DIR}/peaks-sample-base.hex")).unwrap();
+    let mut deframer: Deframer = Deframer::new();
+    let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+    assert!(
+        matches!(&decoded[..], [Ok(Frame { body: Body::Peaks(g), .. })] if g == q),
+        "{decoded:?}"
+    );
+    // And "no rotor signature" is no rotor, whatever else.
+    assert!(!aim_wire::Peaks::no_rotor(24_576).is_rotor());
 }

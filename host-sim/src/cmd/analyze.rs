@@ -58,7 +58,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("reading {}", args.wav.display()))?;
     let spec = reader.spec();
     let channels = spec.channels as usize;
-    if channels != geometry.len() {
+    // A mono clip (one microphone, 16 or 48 kHz) feeds every microphone of the array: the
+    // BPF path hears it as it is; a plane wave from the zenith says nothing about direction,
+    // so DoA outputs are not printed.
+    let mono = channels == 1 && geometry.len() > 1;
+    if mono {
+        eprintln!(
+            "{}: one channel: fed to all {} microphones of `{}`; BPF path only, DoA skipped",
+            args.wav.display(),
+            geometry.len(),
+            args.array
+        );
+    }
+    if channels != geometry.len() && !mono {
         bail!(
             "{}: {} channels, but array `{}` has {} microphones",
             args.wav.display(),
@@ -78,9 +90,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let progress = progress_bar(u64::from(reader.duration()))?;
     let stdout = std::io::stdout();
     let mut out = BufWriter::new(stdout.lock());
-    let mut printer = Printer { fs, jsonl: args.jsonl, error: None, counts: [0; 3] };
+    let mut printer =
+        Printer { fs, jsonl: args.jsonl, error: None, counts: [0; 3], skip_doa: mono };
     let mut feed = Feed {
         channels,
+        copies: if mono { geometry.len() } else { 1 },
         pipeline: &mut pipeline,
         printer: &mut printer,
         progress: &progress,
@@ -128,6 +142,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// Collects WAV samples into TDM frames and hands them to the pipeline a chunk at a time.
 struct Feed<'a> {
     channels: usize,
+    /// Microphones each WAV channel feeds (the array's count for a mono clip, else 1).
+    copies: usize,
     pipeline: &'a mut Pipeline,
     printer: &'a mut Printer,
     progress: &'a ProgressBar,
@@ -138,10 +154,10 @@ struct Feed<'a> {
 
 impl Feed<'_> {
     fn word(&mut self, word: i32, out: &mut impl std::io::Write) -> anyhow::Result<()> {
-        self.words.push(word);
+        self.words.extend(std::iter::repeat_n(word, self.copies));
         self.slot += 1;
         if self.slot == self.channels {
-            self.words.resize(self.words.len() + TDM_SLOTS - self.channels, 0);
+            self.words.resize(self.words.len() + TDM_SLOTS - self.channels * self.copies, 0);
             self.slot = 0;
             self.frames += 1;
             if self.frames.is_multiple_of(CHUNK_FRAMES) {
@@ -221,6 +237,8 @@ struct Printer {
     jsonl: bool,
     error: Option<std::io::Error>,
     counts: [usize; 3],
+    /// Leave DoA outputs out (a mono clip fed to every microphone).
+    skip_doa: bool,
 }
 
 impl Printer {
@@ -229,6 +247,7 @@ impl Printer {
             return;
         }
         let line = match o {
+            Output::Doa(_) if self.skip_doa => return,
             Output::Doa(d) => {
                 self.counts[0] += 1;
                 let t = d.sample_index as f64 / self.fs;
@@ -256,19 +275,23 @@ impl Printer {
                 if self.jsonl {
                     let list: Vec<_> = peaks
                         .iter()
-                        .map(|k| serde_json::json!({"hz": k.hz, "amp": k.amplitude, "harmonicity": k.harmonicity}))
+                        .map(|k| serde_json::json!({"hz": k.hz, "amp": k.amplitude, "harmonicity": k.harmonicity, "quality": k.quality}))
                         .collect();
-                    serde_json::json!({"kind": "peaks", "t": t, "span_s": span, "bpf_hz": p.bpf_hz, "peaks": list})
+                    serde_json::json!({"kind": "peaks", "t": t, "span_s": span, "rotor": p.rotor, "bpf_hz": p.bpf_hz, "peaks": list})
                         .to_string()
                 } else {
-                    let mut s = format!("{t:9.3} s  peaks  bpf {:8.2} Hz ", p.bpf_hz);
-                    for k in peaks {
-                        s += &format!(
-                            " [{:.2} Hz, amp {:.2e}, harm {:.2}]",
-                            k.hz, k.amplitude, k.harmonicity
-                        );
+                    if !p.rotor {
+                        format!("{t:9.3} s  peaks  no rotor signature")
+                    } else {
+                        let mut s = format!("{t:9.3} s  peaks  bpf {:8.2} Hz ", p.bpf_hz);
+                        for k in peaks {
+                            s += &format!(
+                                " [{:.2} Hz, amp {:.2e}, harm {:.2}, quality {:.2}]",
+                                k.hz, k.amplitude, k.harmonicity, k.quality
+                            );
+                        }
+                        s
                     }
-                    s
                 }
             }
             Output::Health(h) => {

@@ -77,11 +77,13 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
         }),
         Body::Peaks(p) => json!({
             "bpf_hz": f64::from(p.bpf_chz) / 100.0,
+            "rotor": p.is_rotor(),
             "span_samples": p.span_samples,
-            "peaks": p.peaks.iter().map(|q| json!({
+            "peaks": p.peaks.iter().enumerate().map(|(i, q)| json!({
                 "hz": f64::from(q.freq_chz) / 100.0,
                 "amp_db": f64::from(q.amplitude_ddb) / 10.0,
                 "harmonicity": round(f64::from(q.harmonicity) / 255.0, 4),
+                "quality": p.quality_of(i).map(|v| round(f64::from(v), 4)),
             })).collect::<Vec<_>>(),
         }),
         Body::Health(p) => {
@@ -183,11 +185,17 @@ mod tests {
                 peaks: [Peak { freq_chz: 18_750, amplitude_ddb: -203, harmonicity: 255 }]
                     .into_iter()
                     .collect(),
+                detection: aim_wire::Detection::Rotor,
+                quality: [51].into_iter().collect(),
             }),
         };
         let v = frame(&f, None);
         assert_eq!(v["bpf_hz"], json!(187.5));
-        assert_eq!(v["peaks"], json!([{"hz":187.5,"amp_db":-20.3,"harmonicity":1.0}]));
+        assert_eq!(v["rotor"], json!(true));
+        assert_eq!(
+            v["peaks"],
+            json!([{"hz":187.5,"amp_db":-20.3,"harmonicity":1.0,"quality":0.2}])
+        );
     }
 
     #[test]

@@ -95,6 +95,8 @@ pub fn link(from: u64, to: u64, seq: &mut u16, seed: u64) -> Vec<Frame> {
             span_samples: PEAKS_SPAN as u32,
             bpf_chz: (hz * 100.0) as u32,
             peaks: [Peak::new(hz as f32, -20.0, 0.9)].into_iter().collect(),
+            detection: aim_wire::Detection::Rotor,
+            quality: [230].into_iter().collect(),
         };
         items.push((start + PEAKS_SPAN, 2, Body::Peaks(peaks), start));
         start += PEAKS_HOP;

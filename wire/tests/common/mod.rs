@@ -2,8 +2,8 @@
 #![allow(dead_code)]
 
 use aim_wire::{
-    cobs, crc32, encode, Body, Doa, Frame, Header, Health, Hello, Kind, Peak, Peaks, CRC_LEN,
-    MAX_ENCODED_LEN, MAX_MICS, MAX_PANIC_MESSAGE, MAX_PEAKS, UNIQUE_ID_LEN,
+    cobs, crc32, encode, Body, Detection, Doa, Frame, Header, Health, Hello, Kind, Peak, Peaks,
+    CRC_LEN, MAX_ENCODED_LEN, MAX_MICS, MAX_PANIC_MESSAGE, MAX_PEAKS, UNIQUE_ID_LEN,
 };
 
 /// SplitMix64: a tiny, seedable, well-mixed generator (the tests need no more).
@@ -70,7 +70,13 @@ pub fn sample_frames() -> Vec<Frame> {
         },
         Frame {
             header: header(2, 3_072_000),
-            body: Body::Peaks(Peaks { span_samples: 24_576, bpf_chz: 18_742, peaks }),
+            body: Body::Peaks(Peaks {
+                span_samples: 24_576,
+                bpf_chz: 18_742,
+                quality: peaks.iter().map(|_| 200).collect(),
+                peaks,
+                detection: Detection::Rotor,
+            }),
         },
         Frame {
             header: header(3, 3_073_024),
@@ -141,6 +147,8 @@ pub fn worst_case(kind: Kind) -> Frame {
                     MAX_PEAKS],
             )
             .unwrap(),
+            detection: Detection::Rotor,
+            quality: heapless::Vec::from_slice(&[u8::MAX; MAX_PEAKS]).unwrap(),
         }),
         Kind::Health => Body::Health(Health {
             blocks: u32::MAX,
@@ -211,6 +219,8 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
                     harmonicity: rng.byte(),
                 })
                 .collect(),
+            detection: [Detection::Unstated, Detection::NoRotor, Detection::Rotor][rng.below(3)],
+            quality: (0..rng.below(MAX_PEAKS + 1)).map(|_| rng.byte()).collect(),
         }),
         _ => Body::Health(Health {
             blocks: small(rng),

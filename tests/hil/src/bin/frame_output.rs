@@ -58,9 +58,10 @@ fn output(i: u32) -> Option<Output> {
         })),
         2 => {
             let mut peaks = [Peak::default(); 4];
-            peaks[0] = Peak { hz: 150.0 + x, amplitude: 0.05, harmonicity: 0.9 };
-            peaks[1] = Peak { hz: 210.0 + x, amplitude: 0.01, harmonicity: 0.6 };
+            peaks[0] = Peak { hz: 150.0 + x, amplitude: 0.05, harmonicity: 0.9, quality: 0.8 };
+            peaks[1] = Peak { hz: 210.0 + x, amplitude: 0.01, harmonicity: 0.6, quality: 0.5 };
             Some(Output::Peaks(Peaks {
+                rotor: true,
                 sample_index,
                 span_samples: 24_576,
                 bpf_hz: 150.0 + x,

@@ -151,14 +151,16 @@ pub fn write_output(w: &mut impl Write, output: &Output) -> fmt::Result {
             d.quality.to_bits()
         )?,
         Output::Peaks(p) => {
-            write!(w, "peaks {} {:08x}", p.sample_index, p.bpf_hz.to_bits())?;
+            let rotor = if p.rotor { "rotor" } else { "no-rotor" };
+            write!(w, "peaks {} {rotor} {:08x}", p.sample_index, p.bpf_hz.to_bits())?;
             for peak in &p.peaks[..usize::from(p.count).min(p.peaks.len())] {
                 write!(
                     w,
-                    " {:08x}/{:08x}/{:08x}",
+                    " {:08x}/{:08x}/{:08x}/{:08x}",
                     peak.hz.to_bits(),
                     peak.amplitude.to_bits(),
-                    peak.harmonicity.to_bits()
+                    peak.harmonicity.to_bits(),
+                    peak.quality.to_bits()
                 )?;
             }
         }
