@@ -254,9 +254,13 @@ mod tests {
             let outputs = body.iter().filter(|l| !l.starts_with("frame ")).count();
             assert_eq!(body.len(), 2 * outputs + 1, "{}", scenario.name);
             assert!(!body.iter().any(|l| l.contains("error")), "{}", scenario.name);
-            // The golden tone's blade-passing frequency is 330 Hz (aim_golden::signal).
-            for line in body.iter().filter(|l| l.starts_with("peaks ")) {
-                let bits = line.split(' ').nth(2).unwrap();
+            // The golden tone's blade-passing frequency is 330 Hz (aim_golden::signal); the
+            // detector reports it once its continuity test has held ("peaks INDEX rotor BPF").
+            let rotor: Vec<&&str> =
+                body.iter().filter(|l| l.starts_with("peaks ") && l.contains(" rotor ")).collect();
+            assert!(!rotor.is_empty(), "{}: no rotor signature", scenario.name);
+            for line in rotor {
+                let bits = line.split(' ').nth(3).unwrap();
                 let bpf = f32::from_bits(u32::from_str_radix(bits, 16).unwrap());
                 assert!((bpf - 330.0).abs() < 1.0, "{}: {line}", scenario.name);
             }
