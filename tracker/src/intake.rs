@@ -493,6 +493,19 @@ mod tests {
     use crate::site::ArrayPose;
     use aim_wire::{Doa, Header, Peak, Peaks};
 
+    /// A 0.5 s Peaks frame with one rotor group at 328.25 Hz (BPF 328.25 Hz, quality 200).
+    fn rotor_peaks() -> Peaks {
+        let mut peaks = heapless::Vec::new();
+        peaks.push(Peak::new(328.25, -20.0, 1.0)).unwrap();
+        Peaks {
+            span_samples: 8000,
+            bpf_chz: 32825,
+            peaks,
+            detection: aim_wire::Detection::Rotor,
+            quality: [200].into_iter().collect(),
+        }
+    }
+
     fn collect(intake: &mut Intake, frame: &Frame, out: &mut Vec<Released>) {
         intake.push(frame, &mut |r| out.push(r)).unwrap();
     }
@@ -513,16 +526,8 @@ mod tests {
         };
         collect(&mut intake, &doa(16_000), &mut out);
         assert!(out.is_empty(), "the first time base waits for three frames that agree");
-        let mut peaks = heapless::Vec::new();
-        peaks.push(Peak::new(328.25, -20.0, 1.0)).unwrap();
         // A Peaks frame of 0.5 s ending with the next Doa: stamped before it.
-        let p = Peaks {
-            span_samples: 8000,
-            bpf_chz: 32825,
-            peaks,
-            detection: aim_wire::Detection::Rotor,
-            quality: [200].into_iter().collect(),
-        };
+        let p = rotor_peaks();
         collect(&mut intake, &doa(17_600), &mut out);
         collect(&mut intake, &Frame { header: header(11_200), body: Body::Peaks(p) }, &mut out);
         intake.finish(&mut |r| out.push(r));
@@ -555,15 +560,7 @@ mod tests {
 
     #[test]
     fn a_frame_without_rotor_signature_carries_no_groups() {
-        let mut peaks = heapless::Vec::new();
-        peaks.push(Peak::new(328.25, -20.0, 1.0)).unwrap();
-        let p = Peaks {
-            span_samples: 8000,
-            bpf_chz: 32825,
-            peaks,
-            detection: aim_wire::Detection::Rotor,
-            quality: [200].into_iter().collect(),
-        };
+        let p = rotor_peaks();
         let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(p.clone()), 0.0) else { panic!() };
         assert_eq!(s.peaks.len(), 1);
         let none = Peaks { detection: aim_wire::Detection::NoRotor, ..p.clone() };
