@@ -14,6 +14,10 @@ step). Variants (--modes, comma separated):
   hi          band 2000-6000 Hz
   w9          band 200-9000 Hz (the most aim-dsp's 192 band bins allow; ~50 % more cost)
   wide        band 200-12000 Hz
+  phat        band 200-6000 Hz, every bin's phase alone (no coherence weight)
+  cc          band 200-6000 Hz, plain cross-spectrum (no PHAT: louder bins weigh more)
+  tonal       band 200-6000 Hz, only bins within one bin of a harmonic of 320 Hz (the comb)
+  noise       band 200-6000 Hz, only the bins between the harmonics (the broadband part)
 
     python3 tools/reverb/variants.py --dir /tmp/reverb-tune --modes plain,cdr,b15,hi,w9,wide
 """
@@ -30,7 +34,8 @@ import compare  # noqa: E402
 FS = 48_000
 N = 1024
 BLOCKS = 8
-BANDS = {"plain": (200, 6000), "cdr": (200, 6000), "b15": (1500, 7300), "hi": (2000, 6000),
+BANDS = {"plain": (200, 6000), "cdr": (200, 6000), "phat": (200, 6000), "cc": (200, 6000),
+         "tonal": (200, 6000), "noise": (200, 6000), "b15": (1500, 7300), "hi": (2000, 6000),
          "w9": (200, 9000), "wide": (200, 12000)}
 
 
@@ -42,6 +47,12 @@ def estimate(x, positions, mode):
     f = np.fft.rfftfreq(N, 1 / FS)
     lo, hi = BANDS[mode]
     band = (f >= lo) & (f <= hi)
+    harmonic = np.round(f / 320.0)
+    comb = (np.abs(f - harmonic * 320.0) <= FS / N) & (harmonic >= 1)
+    if mode == "tonal":
+        band &= comb
+    elif mode == "noise":
+        band &= ~comb
     U = X / np.maximum(np.abs(X), 1e-30)
     up = 64
     n = N * up
@@ -62,6 +73,10 @@ def estimate(x, positions, mode):
                                           np.where((r2 >= 0) & (r2 < 1), r2, 0.0)))
             s = gx - beta * gn
             g[band] = s / np.maximum(np.abs(s), 1e-12) * (1 - beta)
+        elif mode == "phat":
+            g[band] = G[band] / np.maximum(np.abs(G[band]), 1e-12)
+        elif mode == "cc":
+            g[band] = np.sum(X[:, j, band] * np.conj(X[:, i, band]), axis=0)
         else:
             g[band] = G[band] * np.abs(G[band])
         r = np.fft.irfft(np.concatenate([g, np.zeros(n // 2 + 1 - g.size)]), n) * n
@@ -88,16 +103,16 @@ def main():
         for s0 in range(int(compare.SKIP_S * FS), x.shape[1] - N * BLOCKS + 1, N * BLOCKS):
             for m in modes:
                 az, zen = estimate(x[:, s0:s0 + N * BLOCKS], p, m)
-                res[m].setdefault((c["array"], c["rt60_target_s"]), []).append(
+                res[m].setdefault((c["array"], c["rt60_target_s"], c.get("var", "all")), []).append(
                     (compare.wrap(az - c["azimuth_deg"]), zen - c["zenith_deg"]))
-    print("| array | RT60 | variant | frames | azimuth median (p90) | zenith median (p90) | zenith bias |")
-    print("|---|---|---|---|---|---|---|")
+    print("| array | RT60 | room | variant | frames | azimuth median (p90) | zenith median (p90) | zenith bias |")
+    print("|---|---|---|---|---|---|---|---|")
     keys = sorted({k for m in modes for k in res[m]})
     for k in keys:
         for m in modes:
             v = np.array(res[m][k])
             az, zen = np.abs(v[:, 0]), v[:, 1]
-            print(f"| {k[0]} | {k[1]:.1f} s | {m} | {len(v)} | {np.median(az):.1f}° "
+            print(f"| {k[0]} | {k[1]:.1f} s | {k[2]} | {m} | {len(v)} | {np.median(az):.1f}° "
                   f"({np.percentile(az, 90):.1f}°) | {np.median(np.abs(zen)):.1f}° "
                   f"({np.percentile(np.abs(zen), 90):.1f}°) | {np.median(zen):+.1f}° |")
 
