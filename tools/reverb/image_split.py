@@ -38,7 +38,11 @@ def main():
     ap.add_argument("--seeds", default="1-4")
     ap.add_argument("--rt60", default="0.6,1.0")
     ap.add_argument("--arrays", default="respeaker6,respeaker4")
+    ap.add_argument("--array-height", type=float, default=mr.ARRAY_HEIGHT_M,
+                    help="array height above the floor, m [0.8]")
+    ap.add_argument("--variants", default="all,fc,walls,direct")
     a = ap.parse_args()
+    mr.ARRAY_HEIGHT_M = a.array_height
     os.makedirs(a.out, exist_ok=True)
     room_dim, axy = mr.ROOMS["hall20"]
     with open(os.path.join(a.out, "cases.jsonl"), "w") as out:
@@ -50,7 +54,7 @@ def main():
                     rng = np.random.default_rng(seed)
                     az, zen, r, src = mr.draw_source(rng, room_dim, axy)
                     sig = mr.drone_signal(rng, 2.0)
-                    for var in ("all", "fc", "walls", "direct"):
+                    for var in a.variants.split(","):
                         room = pra.ShoeBox(room_dim, fs=mr.FS, materials=materials(var, alpha),
                                            max_order=0 if var == "direct" else order,
                                            air_absorption=False)
@@ -67,6 +71,7 @@ def main():
                         case = {"name": name, "seed": seed, "array": array, "room": "hall20",
                                 "room_dim": list(room_dim), "rt60_target_s": rt60,
                                 "absorption": round(float(alpha), 4), "var": var,
+                                "array_height_m": mr.ARRAY_HEIGHT_M,
                                 "azimuth_deg": az, "zenith_deg": zen, "range_m": r}
                         out.write(json.dumps(case) + "\n")
                         print(name, flush=True)
