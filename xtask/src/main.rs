@@ -81,10 +81,11 @@ fn ci(root: &Path) -> Result<()> {
     cargo(root, &["test"])?;
     cargo(root, &["fmt", "--all", "--check"])?;
     cargo(root, &["clippy", "--all-targets", "--", "-D", "warnings"])?;
-    // The Zenoh bus (tracker feature `zenoh`) is not built here: its cold build of ~240 crates
-    // would take CI past 30 minutes on 2 cores (BENCHMARKS.md "Build cost of the Zenoh bus").
-    // Check it by hand: `cargo clippy -p aim-tracker --features zenoh --all-targets -- -D
-    // warnings` and `cargo test -p aim-tracker --features zenoh --lib --test zenoh_bus`.
+    // The Zenoh bus (tracker feature `zenoh`, off by default): lint it, then run its
+    // multi-process test (gateway, tracker, recorder and a subscriber on localhost).
+    let zenoh = ["-p", "aim-tracker", "--features", "zenoh"];
+    cargo(root, &[&["clippy"], &zenoh[..], &["--all-targets", "--", "-D", "warnings"]].concat())?;
+    cargo(root, &[&["test"], &zenoh[..], &["--lib", "--test", "zenoh_bus"]].concat())?;
     // The board's crates: the firmware and its hardware-in-the-loop test binaries.
     let board = ["-p", "aim-firmware", "-p", "aim-hil-tests", "--target", "thumbv7em-none-eabihf"];
     cargo(root, &[&["clippy", "--release"], &board[..], &["--", "-D", "warnings"]].concat())?;
