@@ -78,5 +78,45 @@ fn ci_suite_runs_every_seed_and_filter_and_summarises_them() {
     let a = std::fs::read_to_string(out.join("runs/short-leg/seed-2/truth.toml")).unwrap();
     let b = std::fs::read_to_string(out.join("runs/short-leg/seed-3/truth.toml")).unwrap();
     assert_ne!(a, b, "two seeds drew the same airframe");
+
+    // `--rescore`: the stored frames tracked again give the same figures (the truth read back
+    // at truth.csv's printed precision moves an error by micrometres at most), and no new
+    // simulation ran (the re-scored directory holds no frames of its own).
+    let again = out.with_extension("rescored");
+    let _ = std::fs::remove_dir_all(&again);
+    let status = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("bench")
+        .arg(root.join("suites/ci.toml"))
+        .arg("--out")
+        .arg(&again)
+        .arg("--rescore")
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let rescored = std::fs::read_to_string(again.join("runs.csv")).unwrap();
+    let rrows: Vec<Vec<&str>> = rescored.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rrows.len(), rows.len(), "{rescored}");
+    for (a, b) in rows.iter().zip(&rrows) {
+        assert_eq!((a[seed], a[filter]), (b[seed], b[filter]));
+        let (x, y): (f64, f64) = (a[mean].parse().unwrap(), b[mean].parse().unwrap());
+        assert!((x - y).abs() < 1e-3, "{a:?} vs rescored {b:?}");
+        assert_eq!(a[avail], b[avail]);
+    }
+    assert!(!again.join("runs/short-leg/seed-2/frames-1.aimraw").exists());
+    // A directory without the stored runs is an error that names the missing file.
+    let missing = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("bench")
+        .arg(root.join("suites/ci.toml"))
+        .arg("--out")
+        .arg(&again)
+        .arg("--rescore")
+        .arg(again.join("nowhere"))
+        .output()
+        .unwrap();
+    assert!(!missing.status.success());
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert!(err.contains("site.toml"), "{err}");
+    let _ = std::fs::remove_dir_all(&again);
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -26,6 +26,12 @@
 //! the airframe and (for a random walk) the course. Writes `DIR/runs.csv` (one row per family,
 //! seed and filter), `DIR/summary.csv` and `DIR/summary.md` (per family and filter, mean ± sd
 //! over seeds), and each run's `fly` output under `DIR/runs/<family>/seed-<n>/`.
+//!
+//! `--rescore FROM` skips the simulation: it tracks the frames an earlier bench of the same
+//! suite stored under `FROM/runs/<family>/seed-<n>/` (their bytes in link order, with the site
+//! file's text, as `aim replay` would) and scores them against the truth read back from
+//! `truth.csv` and `truth.toml` at their printed precision. For work on the tracker: the same
+//! frames, re-scored in seconds instead of minutes. `DIR` may be `FROM`.
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -40,7 +46,7 @@ use aim_tracker::profile::Profile;
 use host_sim::eval::metrics::Summary;
 use host_sim::scenario::Scenario;
 
-use super::fly::{filter_name, track};
+use super::fly::{filter_name, track, track_recorded, Recorded};
 
 /// Arguments of `host-sim bench`.
 #[derive(clap::Args)]
@@ -59,6 +65,10 @@ pub struct Args {
     /// Runs at once (0: one per core).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Do not simulate: track the frames an earlier `bench` of this suite stored in this
+    /// directory (`FROM/runs/<family>/seed-<n>/`) and score them again.
+    #[arg(long, value_name = "FROM")]
+    rescore: Option<PathBuf>,
 }
 
 #[derive(Deserialize)]
@@ -384,16 +394,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let results: Mutex<Vec<RunResult>> = Mutex::new(Vec::new());
     let failures: Mutex<Vec<String>> = Mutex::new(Vec::new());
     let run_one = |fam: &Family, seed: u64| -> anyhow::Result<Vec<RunResult>> {
-        let scenario = Scenario::load_with(&fam.scenario, seed, &fam.overrides)?;
-        let (sim, links) = host_sim::eval::link::simulate_links(
-            &scenario,
-            &host_sim::Options { threads: 1 },
-            &indicatif::ProgressBar::hidden(),
-            host_sim::DEFAULT_FULL_SCALE_PA,
-        )?;
-        let dir = args.out.join("runs").join(&fam.name).join(format!("seed-{seed}"));
+        let run_dir = Path::new("runs").join(&fam.name).join(format!("seed-{seed}"));
+        let dir = args.out.join(&run_dir);
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        let runs = track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s)?;
+        let runs = if let Some(from) = &args.rescore {
+            let recorded = Recorded::load(&from.join(&run_dir))?;
+            track_recorded(&recorded, &dir, &profile, &suite.filters, suite.period_s)?
+        } else {
+            let scenario = Scenario::load_with(&fam.scenario, seed, &fam.overrides)?;
+            let (sim, links) = host_sim::eval::link::simulate_links(
+                &scenario,
+                &host_sim::Options { threads: 1 },
+                &indicatif::ProgressBar::hidden(),
+                host_sim::DEFAULT_FULL_SCALE_PA,
+            )?;
+            track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s)?
+        };
         Ok(runs
             .into_iter()
             .map(|r| RunResult {

@@ -134,7 +134,6 @@ pub(crate) fn track(
         .with_context(|| format!("writing {}", site_path.display()))?;
     std::fs::write(out.join("truth.csv"), sim.truth.to_csv()).context("writing truth.csv")?;
     std::fs::write(out.join("truth.toml"), sim.truth.to_toml()).context("writing truth.toml")?;
-    let site = aim_tracker::site::Site::parse(&site_text, &site_path)?;
 
     // Every array through the pipeline and the link, into the files a board's link would fill.
     let mut raw_paths = Vec::new();
@@ -144,16 +143,80 @@ pub(crate) fn track(
             .with_context(|| format!("writing {}", raw_path.display()))?;
         raw_paths.push((u16::from(rec.id), raw_path));
     }
+    let recorded =
+        Recorded { site_text, site: sim.site.clone(), truth: sim.truth.clone(), raw_paths };
+    track_recorded(&recorded, out, profile, kinds, period)
+}
 
+/// A run as `fly` leaves it on disk: the site file's text and content, the truth, and each
+/// array's link recording.
+pub(crate) struct Recorded {
+    /// `site.toml` as written (what the tracker reads).
+    pub site_text: String,
+    /// The same site, for the plot.
+    pub site: host_sim::site::Site,
+    /// The truth (scoring only; the tracker never sees it).
+    pub truth: host_sim::truth::Truth,
+    /// `(array id, frames-<id>.aimraw)` per array.
+    pub raw_paths: Vec<(u16, PathBuf)>,
+}
+
+impl Recorded {
+    /// Reads a run directory `fly` (or `bench`) wrote: `site.toml`, `truth.csv`, `truth.toml`
+    /// and every `frames-<id>.aimraw`.
+    pub(crate) fn load(dir: &Path) -> anyhow::Result<Self> {
+        let read = |name: &str| {
+            let p = dir.join(name);
+            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))
+        };
+        let site_text = read("site.toml")?;
+        let site: host_sim::site::Site = toml::from_str(&site_text)
+            .with_context(|| format!("in site file {}", dir.join("site.toml").display()))?;
+        let truth = host_sim::truth::Truth::parse(
+            &read("truth.csv")?,
+            &dir.join("truth.csv").display().to_string(),
+            &read("truth.toml")?,
+            &dir.join("truth.toml").display().to_string(),
+        )?;
+        let mut raw_paths = Vec::new();
+        for entry in std::fs::read_dir(dir).with_context(|| format!("listing {}", dir.display()))? {
+            let path = entry?.path();
+            let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+            if let Some(id) = name.strip_prefix("frames-").and_then(|n| n.strip_suffix(".aimraw")) {
+                let id =
+                    id.parse::<u16>().with_context(|| format!("{}: array id", path.display()))?;
+                raw_paths.push((id, path));
+            }
+        }
+        raw_paths.sort();
+        if raw_paths.is_empty() {
+            anyhow::bail!("{}: no frames-<id>.aimraw recording", dir.display());
+        }
+        Ok(Self { site_text, site, truth, raw_paths })
+    }
+}
+
+/// Tracks a recorded run with each filter of `kinds`, exactly as `aim replay` reads it (the
+/// site file's text, the link's bytes in link order), scores the fixes against the truth and
+/// writes each filter's `track.csv`, `fixes.jsonl` and plot under `out`.
+pub(crate) fn track_recorded(
+    rec: &Recorded,
+    out: &Path,
+    profile: &Profile,
+    kinds: &[FilterKind],
+    period: f64,
+) -> anyhow::Result<Vec<TrackRun>> {
+    let site = aim_tracker::site::Site::parse(&rec.site_text, &out.join("site.toml"))?;
     let mut runs = Vec::new();
     for &kind in kinds {
         let config = TrackerConfig { output_period_s: period, ..TrackerConfig::default() };
         let tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
         let tracked = tracker.array_id();
         let array_index =
-            sim.truth.array_ids.iter().position(|&id| u16::from(id) == tracked).unwrap_or(0);
+            rec.truth.array_ids.iter().position(|&id| u16::from(id) == tracked).unwrap_or(0);
         // `aim replay frames-<id>.aimraw --site site.toml`: the bytes, in link order.
-        let (_, raw_path) = raw_paths
+        let (_, raw_path) = rec
+            .raw_paths
             .iter()
             .find(|(id, _)| *id == tracked)
             .with_context(|| format!("no recording of array {tracked}"))?;
@@ -171,15 +234,15 @@ pub(crate) fn track(
         let Some((first, last)) = session.inputs_span() else {
             anyhow::bail!("the pipeline produced no observation");
         };
-        let summary = metrics::evaluate(&fixes, &sim.truth, period, first, last, array_index);
+        let summary = metrics::evaluate(&fixes, &rec.truth, period, first, last, array_index);
         let latency = session.fix_stats();
         let dir = if kinds.len() > 1 { out.join(filter_name(kind)) } else { out.to_path_buf() };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        write_track(&dir.join("track.csv"), &fixes, &sim.truth)?;
+        write_track(&dir.join("track.csv"), &fixes, &rec.truth)?;
         let jsonl: String = fixes.iter().map(|f| f.to_json() + "\n").collect();
         std::fs::write(dir.join("fixes.jsonl"), jsonl).context("writing fixes.jsonl")?;
         let tracker = session.tracker();
-        plot::plot_track(&dir.join("track.png"), &fixes, &sim.truth, &sim.site)?;
+        plot::plot_track(&dir.join("track.png"), &fixes, &rec.truth, &rec.site)?;
         eprintln!(
             "{}: k_v calibrated to {:.4e} N/Hz² (profile {:.4e})",
             filter_name(kind),
