@@ -68,6 +68,23 @@ fn browse(browser: &Path, profile: &Path, args: &[&str], url: &str) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// Pixels of a PNG (8-bit RGB or RGBA) within 8 levels per channel of `rgb`.
+fn pixels_of(png_bytes: &[u8], rgb: [u8; 3]) -> usize {
+    let mut reader = png::Decoder::new(std::io::Cursor::new(png_bytes)).read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.bit_depth, png::BitDepth::Eight, "screenshot bit depth");
+    let step = match info.color_type {
+        png::ColorType::Rgb => 3,
+        png::ColorType::Rgba => 4,
+        other => panic!("screenshot colour type {other:?}"),
+    };
+    buf[..info.buffer_size()]
+        .chunks_exact(step)
+        .filter(|p| (0..3).all(|i| p[i].abs_diff(rgb[i]) <= 8))
+        .count()
+}
+
 /// The text of the element with `id` in a dumped DOM.
 fn text_of<'a>(dom: &'a str, id: &str) -> &'a str {
     let open = format!("id=\"{id}\"");
@@ -136,6 +153,15 @@ fn the_page_receives_and_draws_the_fixes_of_aim_replay() {
     browse(&browser, &profile, &[&format!("--screenshot={}", shot.display())], &url);
     let png = std::fs::read(&shot).expect("the screenshot");
     assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
+    // The canvases were drawn, not only the text: beyond the legend's 12 × 12 px swatches
+    // (HTML, 144 px each), the array's marker (#2e7d32, plan only: ≈ 180 px) and the track's
+    // line-of-sight colour (#1565c0: plan track, ellipse edge, panel lines) are on the screenshot.
+    let count = |rgb: [u8; 3]| pixels_of(&png, rgb);
+    let (array_px, track_px) = (count([0x2e, 0x7d, 0x32]), count([0x15, 0x65, 0xc0]));
+    eprintln!("screenshot pixels: array colour {array_px}, track colour {track_px}");
+    const SWATCH: usize = 144;
+    assert!(array_px >= SWATCH + 100, "array marker: {array_px} pixels of #2e7d32");
+    assert!(track_px >= SWATCH + 300, "track: {track_px} pixels of #1565c0");
     eprintln!("live map screenshot: {}", shot.display());
 
     server.terminate();
