@@ -242,7 +242,7 @@ mod tests {
             position: [1.234_567, -2.5, 1.2 + t],
             velocity: [0.3, -0.25, 0.012_345],
             acceleration: [0.1, 0.0, -0.05],
-            yaw_rad: 0.785_398,
+            yaw_rad: 0.712_345,
             roll_rad: -0.01,
             pitch_rad: 0.02,
             rotor_hz: vec![164.1, 163.9, 164.4, 163.6],
