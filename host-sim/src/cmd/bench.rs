@@ -393,7 +393,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?;
         let dir = args.out.join("runs").join(&fam.name).join(format!("seed-{seed}"));
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        let runs = track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s)?;
+        let choose = suite.profile.is_none();
+        let runs = track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s, choose)?;
         Ok(runs
             .into_iter()
             .map(|r| RunResult {
