@@ -103,6 +103,22 @@ fn aim_replay_names_the_drone_in_every_fix_once_a_window_is_full() {
         assert!(out.status.success());
         let text = String::from_utf8(out.stdout).unwrap();
         assert!(!text.is_empty() && !text.contains("drone"), "{text}");
+        // The profile follows the recognised type (from --id-profiles) unless --profile is
+        // given; never for `none`.
+        let profiles = dir.join("profiles");
+        std::fs::create_dir_all(&profiles).unwrap();
+        let mini = include_str!("../profiles/dji-mini-2.toml");
+        let renamed = mini.replacen("name = ", "name = \"test Mini\"\n# was: ", 1);
+        std::fs::write(profiles.join("dji-mini-2.toml"), &renamed).unwrap();
+        let p = profiles.to_str().unwrap();
+        let out = common::aim_replay_output(&rec, &site, &["--id-profiles", p]);
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        let switched = err.contains("tracking with its profile (test Mini)");
+        assert_eq!(switched, class == "dji-mini-2", "{class}: {err}");
+        let given = dir.join("profiles").join("dji-mini-2.toml");
+        let fixed = ["--id-profiles", p, "--profile", given.to_str().unwrap()];
+        let out = common::aim_replay_output(&rec, &site, &fixed);
+        assert!(!String::from_utf8_lossy(&out.stderr).contains("tracking with its profile"));
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
