@@ -61,6 +61,8 @@ pub struct Identifier {
     streak: (String, u32),
     /// `Mfcc` frames of the tracked array seen (each makes a verdict once the window is full).
     frames: u64,
+    /// Sample index of the newest one: an older one means the array restarted its clock.
+    last_index: u64,
 }
 
 /// Verdicts in a row (one per `Mfcc` frame, 0.256 s) before the profile follows a class: 2 s.
@@ -81,6 +83,7 @@ impl Identifier {
             chosen: None,
             streak: (String::new(), 0),
             frames: 0,
+            last_index: 0,
         })
     }
 
@@ -106,7 +109,16 @@ impl Identifier {
     }
 
     /// One `Mfcc` frame of the tracked array; returns a profile to switch to, if any.
-    fn push(&mut self, frame: &aim_wire::Mfcc) -> Option<crate::profile::Profile> {
+    fn push(
+        &mut self,
+        sample_index: u64,
+        frame: &aim_wire::Mfcc,
+    ) -> Option<crate::profile::Profile> {
+        if sample_index < self.last_index {
+            // The array rebooted: its new frames do not continue the old window.
+            self.live.clear();
+        }
+        self.last_index = sample_index;
         self.frames += 1;
         self.live.push(frame);
         let v = self.live.verdict()?;
@@ -214,7 +226,8 @@ impl Session {
         self.status_lock().observe(frame, now);
         if let (Some(id), aim_wire::Body::Mfcc(m)) = (&mut self.identifier, &frame.body) {
             if u16::from(frame.header.array_id) == self.tracker.array_id() {
-                let switch = id.push(m).filter(|p| p != self.tracker.profile());
+                let index = frame.header.sample_index;
+                let switch = id.push(index, m).filter(|p| p != self.tracker.profile());
                 if let Some(profile) = switch {
                     eprintln!(
                         "note: drone classified as {} ; tracking with its profile ({})",
