@@ -54,6 +54,9 @@ pub struct Config {
     pub bpf_max_rate_per_s: f32,
     /// Blocks between two `Health` outputs. Default 48 (about 1 s at 48 kHz / 1024).
     pub health_interval_blocks: u32,
+    /// BPF analyses (one per 0.256 s) between two `Mfcc` outputs ([`crate::idframe`]); 0: no
+    /// `Mfcc` outputs. Default 1 (3.9 per second).
+    pub mfcc_interval: u32,
 }
 
 impl Config {
@@ -87,6 +90,7 @@ impl Config {
             bpf_min_quality: 0.35,
             bpf_max_rate_per_s: 0.1,
             health_interval_blocks: 48,
+            mfcc_interval: 1,
         }
     }
 
@@ -162,6 +166,9 @@ impl Config {
         }
         if self.health_interval_blocks == 0 {
             return Err(ConfigError::Tunable("health_interval_blocks"));
+        }
+        if self.mfcc_interval > 64 {
+            return Err(ConfigError::Tunable("mfcc_interval"));
         }
         Ok(())
     }

@@ -17,7 +17,8 @@
 //! exponent), [`gcc_phat`] (PHAT cross spectra, lag search, sub-sample refinement),
 //! [`doa`] (least-squares direction), [`bpf`] (decimation, long spectrum), [`comb`] (whitening,
 //! rotor combs, detection),
-//! [`features`] (drone-identification features: log-mel, MFCC, BPF harmonics),
+//! [`features`] (drone-identification features of 16 kHz frames: log-mel, MFCC, BPF harmonics),
+//! [`idframe`] (the same kinds of features from the BPF path's spectrum: the chip's MFCC output),
 //! [`pipeline`] (the streaming glue).
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![forbid(unsafe_code)]
@@ -32,6 +33,7 @@ pub mod features;
 pub mod frontend;
 pub mod gcc_phat;
 mod geometry;
+pub mod idframe;
 mod output;
 pub mod pdm;
 pub mod pipeline;
@@ -42,6 +44,7 @@ pub use error::ConfigError;
 pub use geometry::{
     Geometry, CIRCLE_8MIC_RADIUS_M, RESPEAKER_4MIC_SIDE_M, RESPEAKER_6MIC_RADIUS_M,
 };
+pub use idframe::IdFeatures;
 pub use output::{Doa, Health, Output, Peak, Peaks};
 pub use pipeline::{GapStats, Pipeline};
 

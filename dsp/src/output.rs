@@ -1,4 +1,4 @@
-//! What the pipeline emits: direction of arrival, BPF peaks and health, each stamped with the
+//! What the pipeline emits: direction of arrival, BPF peaks, identification features and health, each stamped with the
 //! sample index (the array's own clock) of the first sample it describes.
 
 /// One result of the streaming [`crate::Pipeline`].
@@ -10,6 +10,8 @@ pub enum Output {
     Peaks(Peaks),
     /// Front-end statistics for the last interval.
     Health(Health),
+    /// Drone-identification features of a BPF analysis window ([`crate::idframe`]).
+    Mfcc(crate::idframe::IdFeatures),
 }
 
 /// Direction of arrival, far field, planar array (source on the +z side).

@@ -1,14 +1,15 @@
-//! The streaming pipeline: TDM words in, `Doa` / `Peaks` / `Health` out.
+//! The streaming pipeline: TDM words in, `Doa` / `Peaks` / `Mfcc` / `Health` out.
 //!
 //! Output rates with the defaults: one `Doa` per `average_blocks` blocks (48 kHz, 1024-sample
 //! blocks, 8 blocks: 5.86 per second; 16 kHz, 512, 5: 6.25 per second), one `Peaks` per
-//! 2048 decimated samples (3.9 per second at either rate), one `Health` per
+//! 2048 decimated samples (3.9 per second at either rate), one `Mfcc` (identification
+//! features of the same analysis window) per `mfcc_interval` `Peaks`, one `Health` per
 //! `health_interval_blocks` blocks (about 1 per second at 48 kHz). A `Doa` is left out when
 //! fewer than two pairs, spanning the plane, carry a coherent peak (silence, a single tone).
 //!
-//! Memory is fixed: `size_of::<Pipeline>()` is 116 040 bytes on the Cortex-M4F (the
+//! Memory is fixed: `size_of::<Pipeline>()` is 117 488 bytes on the Cortex-M4F (the
 //! `memory_budget` test keeps it ≤ 128 KiB), all of it in the struct, nothing on the heap and
-//! only small temporaries on the stack (904 bytes deep for `push`). The
+//! only small temporaries on the stack (992 bytes deep for `push`). The
 //! struct is `const`-constructible ([`Pipeline::empty`]) so the firmware can place it in a
 //! `static` and [`Pipeline::configure`] it there, without a large stack temporary.
 //!
@@ -27,6 +28,7 @@ use crate::bpf::{SpectralPath, ANALYSIS_LEN};
 use crate::doa::{self, Pair};
 use crate::frontend::{self, FrontEnd};
 use crate::gcc_phat::{self, DelayEstimate, Twiddles};
+use crate::idframe::IdExtractor;
 use crate::{
     Config, ConfigError, Doa, Health, Output, MAX_BAND_BINS, MAX_BLOCK_LEN, MAX_MICS, MAX_PAIRS,
 };
@@ -90,6 +92,10 @@ pub struct Pipeline {
     average_start: u64,
     // spectral path
     spectral: SpectralPath,
+    /// Identification features of the BPF analyses.
+    id: IdExtractor,
+    /// BPF analyses since the last `Mfcc` output.
+    analyses_since_mfcc: u32,
     scratch: [f32; SCRATCH_LEN],
     // health
     health_start: u64,
@@ -141,6 +147,8 @@ impl Pipeline {
             averaged: 0,
             average_start: 0,
             spectral: SpectralPath::empty(),
+            id: IdExtractor::empty(),
+            analyses_since_mfcc: 0,
             scratch: [0.0; SCRATCH_LEN],
             health_start: 0,
             health_blocks: 0,
@@ -153,7 +161,7 @@ impl Pipeline {
         }
     }
 
-    /// A configured pipeline by value (116 040 bytes: prefer [`Pipeline::empty`] +
+    /// A configured pipeline by value (117 488 bytes: prefer [`Pipeline::empty`] +
     /// [`Pipeline::configure`] in place on small stacks).
     pub fn new(config: &Config) -> Result<Self, ConfigError> {
         let mut p = Self::empty();
@@ -191,6 +199,7 @@ impl Pipeline {
         self.fft_len = config.block_len / self.decimation;
         crate::window::hann(&mut self.window[..self.fft_len]);
         self.spectral.configure(config.sample_rate_hz, self.decimation);
+        self.id.configure();
         self.reset_stream();
         self.configured = true;
         Ok(())
@@ -210,6 +219,7 @@ impl Pipeline {
         self.gap_stats = GapStats::default();
         self.spectral_skipped = 0;
         self.spectral_clean_from = 0;
+        self.analyses_since_mfcc = 0;
         self.delays = [DelayEstimate::default(); MAX_PAIRS];
         for c in &mut self.cross {
             c.fill(Complex32::new(0.0, 0.0));
@@ -487,6 +497,18 @@ impl Pipeline {
             let mut peaks = self.spectral.analyze(&self.config, &mut self.scratch, &self.twiddles);
             peaks.sample_index += self.spectral_skipped;
             sink(Output::Peaks(peaks));
+            if self.config.mfcc_interval > 0 {
+                self.analyses_since_mfcc += 1;
+                if self.analyses_since_mfcc >= self.config.mfcc_interval {
+                    self.analyses_since_mfcc = 0;
+                    // `analyze` left the magnitude spectrum and the whitened one in scratch.
+                    let (mags, white) = self.scratch.split_at(ANALYSIS_LEN / 2);
+                    let mut f = self.id.compute(mags, white, &self.config);
+                    f.sample_index = peaks.sample_index;
+                    f.span_samples = peaks.span_samples;
+                    sink(Output::Mfcc(f));
+                }
+            }
         }
     }
 

@@ -137,3 +137,37 @@ fn silence_gives_no_direction_and_no_peaks_and_clipping_is_counted() {
     assert_eq!(health[0].clipped_samples, 48 * 1024);
     assert!(health[0].peak_dbfs > -0.1);
 }
+
+#[test]
+fn mfcc_outputs_follow_the_bpf_analyses_and_find_the_comb() {
+    // The plane wave's comb sits on bin `n·328/fs` of the periodic signal: 48 kHz, 65 536
+    // samples → bin 447, 327.39 Hz. One Mfcc per Peaks, same window, comb f0 within 0.5 Hz.
+    let g = Geometry::respeaker_6mic();
+    let (fs, n) = (48_000.0, 65_536);
+    let words = plane_wave(&g, fs, n, 10.0, 30.0, 3);
+    let hz = (n * 328 / fs as usize) as f64 * fs / n as f64;
+    let mut config = Config::new(g, 48_000);
+    let mut p = Pipeline::new(&config).unwrap();
+    let out = common::run(&mut p, &words);
+    let peaks: Vec<_> =
+        out.iter().filter_map(|o| if let Output::Peaks(k) = o { Some(*k) } else { None }).collect();
+    let mfcc: Vec<_> =
+        out.iter().filter_map(|o| if let Output::Mfcc(f) = o { Some(*f) } else { None }).collect();
+    assert!(peaks.len() >= 4, "{} Peaks", peaks.len());
+    assert_eq!(mfcc.len(), peaks.len());
+    for (f, k) in mfcc.iter().zip(&peaks) {
+        assert_eq!((f.sample_index, f.span_samples), (k.sample_index, k.span_samples));
+        let f0 = 250.0 * f64::from(f.harmonic.log2_f0).exp2();
+        assert!((f0 - hz).abs() < 0.5, "comb f0 {f0} Hz, the signal's {hz} Hz");
+        assert!(f.harmonic.salience_db > 10.0, "{:?}", f.harmonic);
+    }
+    // Every other analysis with `mfcc_interval` 2; none with 0.
+    config.mfcc_interval = 2;
+    let mut p = Pipeline::new(&config).unwrap();
+    let every_other =
+        common::run(&mut p, &words).iter().filter(|o| matches!(o, Output::Mfcc(_))).count();
+    assert_eq!(every_other, peaks.len() / 2);
+    config.mfcc_interval = 0;
+    let mut p = Pipeline::new(&config).unwrap();
+    assert!(!common::run(&mut p, &words).iter().any(|o| matches!(o, Output::Mfcc(_))));
+}

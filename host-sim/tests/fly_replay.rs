@@ -3,7 +3,8 @@
 //!
 //! The binary `host-sim fly` runs on a short flight; the replay is the code `aim replay` runs
 //! (`Site::load` of the site file, the bundled profile, the default tracker and intake, the
-//! recording's bytes through `Session::track_reader`), printed with `Fix::to_json` as `aim
+//! recording's bytes through `Session::track_reader`, the bundled drone classifier), printed
+//! with `Fix::to_json` as `aim
 //! replay` prints it. (`aim track` against the `aim replay` binary: tracker/tests/track_pty.rs.)
 
 use std::path::PathBuf;
@@ -36,7 +37,12 @@ fn replay(frames: &std::path::Path, site: &std::path::Path, kind: FilterKind) ->
     let site = Site::load(site).unwrap();
     let tracker =
         Tracker::new(site.clone(), Profile::dji_mini_2(), kind, TrackerConfig::default()).unwrap();
-    let mut session = Session::new(tracker, site, IntakeConfig::default());
+    // `aim replay`'s default drone classifier: the bundled model, the profile free to follow.
+    let model = aim_tracker::id::default_model();
+    let profiles = aim_tracker::id::class_profiles(None, &model.classes).unwrap();
+    let identifier = aim_tracker::session::Identifier::new(model, profiles).unwrap();
+    let mut session =
+        Session::new(tracker, site, IntakeConfig::default()).with_identifier(identifier);
     let mut source = FrameSource::new(link::open_input(frames.to_str().unwrap()).unwrap());
     let mut out = String::new();
     session

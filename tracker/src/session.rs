@@ -43,6 +43,99 @@ pub struct Session {
     status: std::sync::Arc<std::sync::Mutex<Status>>,
     /// The origin of the status clock.
     started: std::time::Instant,
+    /// The drone classifier on the tracked array's `Mfcc` frames, if any.
+    identifier: Option<Identifier>,
+}
+
+/// The live drone classifier of a session and the automatic profile choice.
+#[derive(Debug)]
+pub struct Identifier {
+    live: crate::id::chip::Live,
+    /// Profiles by class name: the tracker switches to a class's profile once it has been the
+    /// verdict [`PROFILE_SWITCH_VERDICTS`] times in a row with at least
+    /// [`PROFILE_SWITCH_PROBABILITY`]. Empty: the profile never changes (`--profile` given).
+    profiles: Vec<(String, crate::profile::Profile)>,
+    /// The class whose profile is in force, if one was chosen.
+    chosen: Option<String>,
+    /// The newest verdict's class and how many verdicts in a row it has had.
+    streak: (String, u32),
+    /// `Mfcc` frames of the tracked array seen (each makes a verdict once the window is full).
+    frames: u64,
+    /// Sample index of the newest one: an older one means the array restarted its clock.
+    last_index: u64,
+}
+
+/// Verdicts in a row (one per `Mfcc` frame, 0.256 s) before the profile follows a class: 2 s.
+pub const PROFILE_SWITCH_VERDICTS: u32 = 8;
+/// Least probability of those verdicts.
+pub const PROFILE_SWITCH_PROBABILITY: f32 = 0.7;
+
+impl Identifier {
+    /// A classifier with `model` (trained with `--features chip`) and the profiles it may
+    /// choose from, by class name (empty: keep the tracker's).
+    pub fn new(
+        model: crate::id::model::Model,
+        profiles: Vec<(String, crate::profile::Profile)>,
+    ) -> anyhow::Result<Self> {
+        Ok(Self {
+            live: crate::id::chip::Live::new(model)?,
+            profiles,
+            chosen: None,
+            streak: (String::new(), 0),
+            frames: 0,
+            last_index: 0,
+        })
+    }
+
+    /// The class whose profile the tracker uses, if the classifier chose one.
+    pub fn chosen(&self) -> Option<&str> {
+        self.chosen.as_deref()
+    }
+
+    /// The `drone` field for the latest verdict; none before the tracked array's first `Mfcc`
+    /// frame (a board that sends none, older firmware: fixes as before).
+    fn field(&self) -> Option<crate::tracker::DroneField> {
+        use crate::tracker::DroneField;
+        if self.frames == 0 {
+            return None;
+        }
+        Some(match self.live.verdict() {
+            None => DroneField::Pending,
+            Some(v) if v.class == crate::id::NONE_CLASS => {
+                DroneField::NoDrone { probability: v.probability }
+            }
+            Some(v) => DroneField::Drone { class: v.class.clone(), probability: v.probability },
+        })
+    }
+
+    /// One `Mfcc` frame of the tracked array; returns a profile to switch to, if any.
+    fn push(
+        &mut self,
+        sample_index: u64,
+        frame: &aim_wire::Mfcc,
+    ) -> Option<crate::profile::Profile> {
+        if sample_index < self.last_index {
+            // The array rebooted: its new frames do not continue the old window.
+            self.live.clear();
+        }
+        self.last_index = sample_index;
+        self.frames += 1;
+        self.live.push(frame);
+        let v = self.live.verdict()?;
+        if v.class == self.streak.0 && v.probability >= PROFILE_SWITCH_PROBABILITY {
+            self.streak.1 += 1;
+        } else {
+            let n = u32::from(v.probability >= PROFILE_SWITCH_PROBABILITY);
+            self.streak = (v.class.clone(), n);
+        }
+        if self.streak.1 < PROFILE_SWITCH_VERDICTS || self.chosen.as_deref() == Some(&self.streak.0)
+        {
+            return None;
+        }
+        let (class, profile) = self.profiles.iter().find(|(c, _)| *c == self.streak.0)?;
+        self.chosen = Some(class.clone());
+        Some(profile.clone())
+    }
 }
 
 impl std::fmt::Debug for Session {
@@ -65,7 +158,21 @@ impl Session {
             latency_sum_s: 0.0,
             latency_max_s: 0.0,
             inputs_span: None,
+            identifier: None,
         }
+    }
+
+    /// The session with a live drone classifier on the tracked array's `Mfcc` frames: every
+    /// fix then carries a `drone` field, and the tracker takes the profile of a recognised
+    /// class when the identifier has one for it.
+    pub fn with_identifier(mut self, identifier: Identifier) -> Self {
+        self.identifier = Some(identifier);
+        self
+    }
+
+    /// The classifier, if the session has one.
+    pub fn identifier(&self) -> Option<&Identifier> {
+        self.identifier.as_ref()
     }
 
     /// The tracker (for its calibration and diagnostics).
@@ -117,6 +224,20 @@ impl Session {
     pub fn push(&mut self, frame: &Frame) -> Result<Vec<Fix>, IntakeError> {
         let now = self.clock_s();
         self.status_lock().observe(frame, now);
+        if let (Some(id), aim_wire::Body::Mfcc(m)) = (&mut self.identifier, &frame.body) {
+            if u16::from(frame.header.array_id) == self.tracker.array_id() {
+                let index = frame.header.sample_index;
+                let switch = id.push(index, m).filter(|p| p != self.tracker.profile());
+                if let Some(profile) = switch {
+                    eprintln!(
+                        "note: drone classified as {} ; tracking with its profile ({})",
+                        id.chosen().unwrap_or("?"),
+                        profile.name
+                    );
+                    self.tracker.set_profile(profile);
+                }
+            }
+        }
         let tracker = &mut self.tracker;
         let span = &mut self.inputs_span;
         let mut fixes = Vec::new();
@@ -208,7 +329,9 @@ impl Session {
 
     fn stamp(&mut self, mut fixes: Vec<Fix>) -> Vec<Fix> {
         let now = self.intake.now();
+        let drone = self.identifier.as_ref().and_then(Identifier::field);
         for f in &mut fixes {
+            f.drone.clone_from(&drone);
             f.available = now.max(f.t);
             let latency = f.available - f.t;
             self.fixes += 1;

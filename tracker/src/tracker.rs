@@ -142,14 +142,50 @@ pub struct Fix {
     pub motion: MotionClass,
     /// Line-of-sight decision.
     pub los: bool,
+    /// What the drone classifier says of the tracked array's latest `Mfcc` window, when the
+    /// session classifies ([`crate::session::Session::with_identifier`]); set by the session.
+    pub drone: Option<DroneField>,
+}
+
+/// The `drone` field of a fix.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DroneField {
+    /// Not yet classified: fewer `Mfcc` frames than a window since the start or a restart.
+    Pending,
+    /// The most probable class is `none`: no drone heard.
+    NoDrone {
+        /// P(none), 0–1.
+        probability: f32,
+    },
+    /// A drone type.
+    Drone {
+        /// Class name (the model's).
+        class: String,
+        /// Its probability, 0–1.
+        probability: f32,
+    },
 }
 
 impl Fix {
     /// The fix as one JSON object (the `aim track`/`aim replay` contract). A coordinate or
     /// time that is not finite prints as `null` (JSON has no NaN): the line stays valid.
+    ///
+    /// With a classifier, a `drone` field follows: `{"class":"dji-mini-2","p":0.93}` for a
+    /// drone type, `"none"` when the most probable class is no drone, `null` until the first
+    /// window of `Mfcc` frames is complete.
     pub fn to_json(&self) -> String {
+        let drone = match &self.drone {
+            None => String::new(),
+            Some(DroneField::Pending) => ",\"drone\":null".into(),
+            Some(DroneField::NoDrone { .. }) => ",\"drone\":\"none\"".into(),
+            Some(DroneField::Drone { class, probability }) => format!(
+                ",\"drone\":{{\"class\":{},\"p\":{}}}",
+                serde_json::Value::String(class.clone()),
+                json_number(f64::from(*probability))
+            ),
+        };
         format!(
-            "{{\"t\":{},\"available\":{},\"x\":{},\"y\":{},\"z\":{},\"motion\":\"{}\",\"los\":{}}}",
+            "{{\"t\":{},\"available\":{},\"x\":{},\"y\":{},\"z\":{},\"motion\":\"{}\",\"los\":{}{drone}}}",
             json_number(self.t),
             json_number(self.available),
             json_number(self.position[0]),
@@ -375,6 +411,23 @@ impl Tracker {
         }
         // Not across a silence: the next input decides whether the track restarts.
         self.advance_to(t.min(self.latest_input_t + self.config.max_gap_s))
+    }
+
+    /// The drone profile in force.
+    pub fn profile(&self) -> &Profile {
+        &self.profile
+    }
+
+    /// Changes the drone profile (the classifier recognised another type): the hover
+    /// calibration and the speed, wake and split estimators start over with it; the filter,
+    /// the direction window and the motion class go on.
+    pub fn set_profile(&mut self, profile: Profile) {
+        self.calibration = HoverCalibration::new(&profile);
+        self.profile = profile;
+        self.speed = SpeedIntegrator::new(&self.profile);
+        self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
+        self.split = WakeSplit::new(WakeConfig::split(), self.profile.wake_split_per_mps());
+        self.split_online = Self::online_split(&self.profile, &self.config);
     }
 
     /// Forgets the flight after a silence: everything but the hover calibration.
@@ -672,6 +725,7 @@ impl Tracker {
             resets: self.resets,
             motion,
             los,
+            drone: None,
         })
     }
 }

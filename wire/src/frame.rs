@@ -8,6 +8,12 @@ use crate::fixed;
 pub const MAX_MICS: usize = 8;
 /// Most spectral peaks a `Peaks` frame carries.
 pub const MAX_PEAKS: usize = 4;
+/// Mel bands in an `Mfcc` frame (aim-dsp `idframe::MEL_BANDS`).
+pub const MFCC_MEL_BANDS: usize = 24;
+/// Cepstral coefficients (c0 included) in an `Mfcc` frame (aim-dsp `idframe::MFCC_COUNT`).
+pub const MFCC_COEFFS: usize = 13;
+/// BPF comb features in an `Mfcc` frame (aim-dsp `features::HARMONIC_FEATURES`).
+pub const MFCC_HARMONIC: usize = 9;
 /// Most bytes of the panic message a `Hello` carries ([`Hello::panic_message`]).
 pub const MAX_PANIC_MESSAGE: usize = 48;
 /// Bytes of a chip unique ID ([`Hello::unique_id`]: the STM32's 96-bit UID).
@@ -30,12 +36,14 @@ pub enum Kind {
     Peaks = 2,
     /// [`Health`]: processing load and loss counters.
     Health = 3,
+    /// [`Mfcc`]: drone-identification features (log-mel, MFCC, BPF comb) of one analysis window.
+    Mfcc = 4,
 }
 
 /// Kind bytes reserved for planned frames. Never reuse them for anything else; an old host
 /// counts such frames as unknown kinds and skips them.
 pub mod reserved {
-    /// MFCC features per drone-type band (`ALGORITHMS.md` §9).
+    /// MFCC features (`ALGORITHMS.md` §10): now [`super::Kind::Mfcc`], kept for the record.
     pub const MFCC: u8 = 4;
     /// Ultrasonic beacon detections in 16–20 kHz.
     pub const BEACON: u8 = 5;
@@ -45,7 +53,7 @@ pub mod reserved {
 
 impl Kind {
     /// Every kind this version knows, in discriminant order.
-    pub const ALL: [Kind; 4] = [Kind::Hello, Kind::Doa, Kind::Peaks, Kind::Health];
+    pub const ALL: [Kind; 5] = [Kind::Hello, Kind::Doa, Kind::Peaks, Kind::Health, Kind::Mfcc];
 
     /// The kind of a kind byte, or `None` if this version does not know it.
     pub const fn from_byte(byte: u8) -> Option<Kind> {
@@ -54,6 +62,7 @@ impl Kind {
             1 => Some(Kind::Doa),
             2 => Some(Kind::Peaks),
             3 => Some(Kind::Health),
+            4 => Some(Kind::Mfcc),
             _ => None,
         }
     }
@@ -70,6 +79,7 @@ impl Kind {
             Kind::Doa => "doa",
             Kind::Peaks => "peaks",
             Kind::Health => "health",
+            Kind::Mfcc => "mfcc",
         }
     }
 
@@ -102,6 +112,8 @@ impl Kind {
             // + cycles, overruns, dropped u32 5 each + queue depth 1 + 9 loss counters u32 5 each
             // + microphone count 1 + 8 x (rms, dc) i16 3 each
             Kind::Health => 5 + 5 + 3 + 1 + 5 * 3 + 1 + 9 * 5 + 1 + MAX_MICS * 2 * 3,
+            // span u32 5 + (24 log-mel + 13 MFCC + 9 harmonic) x i16 3
+            Kind::Mfcc => 5 + (MFCC_MEL_BANDS + MFCC_COEFFS + MFCC_HARMONIC) * 3,
         }
     }
 
@@ -149,6 +161,8 @@ pub enum Body {
     Peaks(Peaks),
     /// See [`Health`].
     Health(Health),
+    /// See [`Mfcc`].
+    Mfcc(Mfcc),
 }
 
 impl Body {
@@ -159,6 +173,7 @@ impl Body {
             Body::Doa(_) => Kind::Doa,
             Body::Peaks(_) => Kind::Peaks,
             Body::Health(_) => Kind::Health,
+            Body::Mfcc(_) => Kind::Mfcc,
         }
     }
 }
@@ -838,5 +853,45 @@ impl Health {
                 .map(|i| [self.mic_levels.rms_ddbfs[i], self.mic_levels.dc_ddbfs[i]])
                 .collect(),
         })
+    }
+}
+
+/// Drone-identification features of one BPF analysis window (aim-dsp `idframe`: 0.512 s at
+/// 8 kHz, one per `mfcc_interval` analyses; default one per 2048 decimated samples, 3.9/s, the
+/// same windows as the `Peaks` frames). The header's sample index is where the window starts.
+/// The host's drone classifier reads these numbers as they are (`aim id`, `aim track`), so a
+/// model trained on simulated recordings run through the same pipeline sees the same values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Mfcc {
+    /// Input-rate samples covered by the analysis window.
+    pub span_samples: u32,
+    /// Mel band energies, units of 0.01 dB relative to a full-scale sine at the band's centre
+    /// (±327.67 dB), [`MFCC_MEL_BANDS`] bands from 60 Hz to 3.5 kHz.
+    pub log_mel_cdb: [i16; MFCC_MEL_BANDS],
+    /// MFCC c0..c12 (orthonormal DCT-II of the log-mel vector), units of 0.1 dB (±3276.7 dB).
+    pub mfcc_ddb: [i16; MFCC_COEFFS],
+    /// Comb features: `log2(f0 / 250 Hz)` in units of 0.001 octave, then salience, half-way
+    /// level, third-way level and harmonics 2..=6 relative to the first, units of 0.01 dB.
+    pub harmonic: [i16; MFCC_HARMONIC],
+}
+
+impl Mfcc {
+    /// Log-mel band `b`, dB.
+    pub fn log_mel_db(&self, b: usize) -> f32 {
+        f32::from(self.log_mel_cdb[b]) * 0.01
+    }
+
+    /// MFCC `c`, dB.
+    pub fn mfcc_db(&self, c: usize) -> f32 {
+        f32::from(self.mfcc_ddb[c]) * 0.1
+    }
+
+    /// The comb features in physical units: `log2(f0 / 250 Hz)` (octaves), then dB.
+    pub fn harmonic_values(&self) -> [f32; MFCC_HARMONIC] {
+        let mut v = [0.0f32; MFCC_HARMONIC];
+        for (i, (o, &q)) in v.iter_mut().zip(&self.harmonic).enumerate() {
+            *o = f32::from(q) * if i == 0 { 0.001 } else { 0.01 };
+        }
+        v
     }
 }

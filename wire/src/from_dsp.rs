@@ -14,8 +14,14 @@
 //! ```
 
 use crate::frame::{
-    Body, Detection, Doa, Health, Hello, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS,
+    Body, Detection, Doa, Health, Hello, Mfcc, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS,
+    MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS,
 };
+
+// The frame's layout follows the DSP's feature counts.
+const _: () = assert!(MFCC_MEL_BANDS == aim_dsp::idframe::MEL_BANDS);
+const _: () = assert!(MFCC_COEFFS == aim_dsp::idframe::MFCC_COUNT);
+const _: () = assert!(MFCC_HARMONIC == aim_dsp::features::HARMONIC_FEATURES);
 use crate::{fixed, EncodeError, Encoder};
 
 /// What the firmware knows and the DSP does not; goes into [`Health`] frames. All zero in
@@ -132,12 +138,29 @@ fn mic_levels(h: &aim_dsp::Health) -> MicLevels {
     levels
 }
 
+/// Identification features at the wire's resolution (log-mel and comb levels 0.01 dB, MFCC
+/// 0.1 dB, fundamental 0.001 octave).
+pub fn mfcc(f: &aim_dsp::IdFeatures) -> Mfcc {
+    let mut m = Mfcc { span_samples: f.span_samples, ..Mfcc::default() };
+    for (q, &v) in m.log_mel_cdb.iter_mut().zip(&f.log_mel_db) {
+        *q = fixed::to_i16(v, 100.0);
+    }
+    for (q, &v) in m.mfcc_ddb.iter_mut().zip(&f.mfcc_db) {
+        *q = fixed::to_i16(v, 10.0);
+    }
+    for (i, (q, &v)) in m.harmonic.iter_mut().zip(&f.harmonic.to_array()).enumerate() {
+        *q = fixed::to_i16(v, if i == 0 { 1000.0 } else { 100.0 });
+    }
+    m
+}
+
 /// The frame body and sample index of one pipeline output.
 pub fn body(output: &aim_dsp::Output, firmware: &FirmwareCounters) -> (u64, Body) {
     match output {
         aim_dsp::Output::Doa(d) => (d.sample_index, Body::Doa(doa(d))),
         aim_dsp::Output::Peaks(p) => (p.sample_index, Body::Peaks(peaks(p))),
         aim_dsp::Output::Health(h) => (h.sample_index, Body::Health(health(h, firmware))),
+        aim_dsp::Output::Mfcc(f) => (f.sample_index, Body::Mfcc(mfcc(f))),
     }
 }
 
@@ -200,6 +223,28 @@ mod tests {
         assert_eq!((w.detection, w.quality.as_slice()), (Detection::Rotor, &[153u8, 102][..]));
         let none = peaks(&aim_dsp::Peaks { span_samples: 24_576, ..Default::default() });
         assert_eq!(none, Peaks::no_rotor(24_576), "no rotor signature: no BPF, no groups");
+    }
+
+    #[test]
+    fn mfcc_fields_map_with_their_units() {
+        let mut f =
+            aim_dsp::IdFeatures { sample_index: 8192, span_samples: 24_576, ..Default::default() };
+        f.log_mel_db[0] = -63.456;
+        f.log_mel_db[23] = -400.0;
+        f.mfcc_db[0] = -391.26;
+        f.mfcc_db[12] = 1.04;
+        f.harmonic.log2_f0 = 0.392; // 327.9 Hz
+        f.harmonic.salience_db = 17.125;
+        f.harmonic.envelope_db[4] = -33.333;
+        let (index, body) = body(&aim_dsp::Output::Mfcc(f), &FirmwareCounters::default());
+        let Body::Mfcc(m) = body else { panic!("{body:?}") };
+        assert_eq!((index, m.span_samples), (8192, 24_576));
+        assert_eq!(m.log_mel_cdb[0], -6346);
+        assert_eq!(m.log_mel_cdb[23], i16::MIN, "saturates");
+        assert_eq!((m.mfcc_ddb[0], m.mfcc_ddb[12]), (-3913, 10));
+        assert_eq!(m.harmonic, [392, 1713, 0, 0, 0, 0, 0, 0, -3333]);
+        assert!((m.harmonic_values()[0] - 0.392).abs() < 1e-6);
+        assert!((m.mfcc_db(0) + 391.3).abs() < 1e-3);
     }
 
     #[test]

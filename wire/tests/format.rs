@@ -17,7 +17,8 @@ fn discriminants_are_pinned() {
     assert_eq!(Kind::Doa as u8, 1);
     assert_eq!(Kind::Peaks as u8, 2);
     assert_eq!(Kind::Health as u8, 3);
-    assert_eq!(reserved::MFCC, 4);
+    assert_eq!(Kind::Mfcc as u8, 4);
+    assert_eq!(reserved::MFCC, Kind::Mfcc as u8);
     assert_eq!(reserved::BEACON, 5);
     assert_eq!(reserved::SNIPPET, 6);
     assert_eq!(aim_wire::MAGIC, 0xA1);
@@ -25,7 +26,7 @@ fn discriminants_are_pinned() {
     for kind in Kind::ALL {
         assert_eq!(Kind::from_byte(kind.byte()), Some(kind));
     }
-    for byte in [reserved::MFCC, reserved::BEACON, reserved::SNIPPET, 7, 255] {
+    for byte in [reserved::BEACON, reserved::SNIPPET, 7, 255] {
         assert_eq!(Kind::from_byte(byte), None);
     }
     // The kind byte sits at offset 2 of every raw frame.
@@ -43,6 +44,7 @@ fn max_encoded_size_per_kind() {
         (Kind::Doa, 36, 39),
         (Kind::Peaks, 73, 76),
         (Kind::Health, 144, 147),
+        (Kind::Mfcc, 163, 166),
     ];
     for (kind, raw_len, wire_len) in expected {
         let frame = worst_case(kind);
@@ -51,8 +53,8 @@ fn max_encoded_size_per_kind() {
         assert_eq!(kind.max_raw_len(), raw_len, "{kind:?} declared raw");
         assert_eq!(kind.max_encoded_len(), wire_len, "{kind:?} declared wire");
     }
-    assert_eq!(MAX_RAW_LEN, 156);
-    assert_eq!(MAX_ENCODED_LEN, 159);
+    assert_eq!(MAX_RAW_LEN, 163);
+    assert_eq!(MAX_ENCODED_LEN, 166);
 }
 
 const GOLDEN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden");
@@ -460,6 +462,7 @@ fn bodies_report_their_kind() {
                 | (Body::Doa(_), Kind::Doa)
                 | (Body::Peaks(_), Kind::Peaks)
                 | (Body::Health(_), Kind::Health)
+                | (Body::Mfcc(_), Kind::Mfcc)
         );
         assert!(matches, "{kind:?}");
     }

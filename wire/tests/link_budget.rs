@@ -19,7 +19,7 @@ const HELLO_PERIOD_S: f64 = 5.0;
 const BUDGET: f64 = 0.5;
 
 /// Frames per second of each kind for a pipeline configuration.
-fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 4] {
+fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 5] {
     let block_s = config.block_len as f64 / f64::from(config.sample_rate_hz);
     let peaks_hop_s =
         aim_dsp::bpf::ANALYSIS_HOP as f64 / f64::from(aim_dsp::bpf::DECIMATED_RATE_HZ);
@@ -28,6 +28,14 @@ fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 4] {
         (Kind::Doa, 1.0 / (block_s * f64::from(config.average_blocks))),
         (Kind::Peaks, 1.0 / peaks_hop_s),
         (Kind::Health, 1.0 / (block_s * f64::from(config.health_interval_blocks))),
+        (Kind::Mfcc, {
+            let every = f64::from(config.mfcc_interval);
+            if every > 0.0 {
+                1.0 / (peaks_hop_s * every)
+            } else {
+                0.0
+            }
+        }),
     ]
 }
 
@@ -72,8 +80,9 @@ fn eight_mics_at_default_rates_use_at_most_half_the_link() {
     let utilisation = load(&config, "aim-dsp defaults, 48 kHz, 8 mics, worst-case sizes");
     assert!(utilisation <= BUDGET, "{:.1} % of the link", 100.0 * utilisation);
     // Physical sanity of the rates read from aim-dsp: a DoA per few blocks, ~1 Health/s.
-    let [_, (_, doa), (_, peaks), (_, health)] = rates(&config);
+    let [_, (_, doa), (_, peaks), (_, health), (_, mfcc)] = rates(&config);
     assert!((1.0..=47.0).contains(&doa), "DoA rate {doa}");
+    assert!(mfcc > 0.0 && mfcc <= peaks, "Mfcc rate {mfcc}: one per analysis at most");
     assert!((0.5..=24.0).contains(&peaks), "Peaks rate {peaks}");
     assert!((0.5..=2.0).contains(&health), "Health rate {health}");
 }

@@ -210,7 +210,7 @@ fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
 
 /// Functions that are a stage, or part of one, wherever they are inlined: the innermost of
 /// these in an inline chain decides.
-const STAGE_FUNCTIONS: [(&str, Probe); 13] = [
+const STAGE_FUNCTIONS: [(&str, Probe); 14] = [
     ("aim_wire::", Probe::Encode),
     ("aim_dsp::gcc_phat::phat_band", Probe::Phat),
     ("aim_dsp::gcc_phat::accumulate_cross", Probe::Phat),
@@ -219,6 +219,7 @@ const STAGE_FUNCTIONS: [(&str, Probe); 13] = [
     ("aim_dsp::gcc_phat::correlation", Probe::Inverse),
     ("aim_dsp::doa::", Probe::Doa),
     ("aim_dsp::bpf::", Probe::Bpf),
+    ("aim_dsp::idframe::", Probe::Features),
     // The pipeline's steps: what they do outside the functions above.
     ("aim_dsp::pipeline::Pipeline::spatial_block", Probe::Fft),
     ("aim_dsp::pipeline::Pipeline::estimate_direction", Probe::Doa),
@@ -306,8 +307,8 @@ impl Report {
     /// [`classify`] no longer recognises aim-dsp's function names, and that stage's
     /// instructions went to `other`.
     pub fn check_stages(&self) -> Result<()> {
-        const STAGES: [Probe; 5] =
-            [Probe::Fft, Probe::Phat, Probe::Inverse, Probe::Doa, Probe::Bpf];
+        const STAGES: [Probe; 6] =
+            [Probe::Fft, Probe::Phat, Probe::Inverse, Probe::Doa, Probe::Bpf, Probe::Features];
         for section in &self.sections {
             if section.stage(Probe::PipelineOther.name()).unwrap_or(0) == 0 {
                 continue; // not a pipeline section
@@ -424,8 +425,13 @@ mod tests {
         let error = format!("{:#}", report.check_stages().unwrap_err());
         assert!(error.contains("8mic") && error.contains("phat"), "{error}");
         let all = "section 1\nprobe 2 1 1\nprobe 3 1 1\nprobe 4 1 1\nprobe 5 1 1\n\
-                   probe 6 1 1\nprobe 7 1 1\nsection 2\nprobe 8 48230 1\n";
+                   probe 6 1 1\nprobe 7 1 1\nprobe 11 1 1\nsection 2\nprobe 8 48230 1\n";
         parse(GUEST, all).unwrap().check_stages().unwrap();
+        // Without the features stage (the map lost `idframe::`): an error naming it.
+        let no_features = all.replace("probe 11 1 1\n", "");
+        let error =
+            format!("{:#}", parse(GUEST, &no_features).unwrap().check_stages().unwrap_err());
+        assert!(error.contains("features"), "{error}");
     }
 
     #[test]
@@ -474,6 +480,11 @@ mod tests {
             Some(Probe::Doa)
         );
         assert_eq!(classify(&chain(&["aim_dsp::bpf::Decimator::push", push])), Some(Probe::Bpf));
+        let spectral = "aim_dsp::pipeline::Pipeline::spectral_block";
+        assert_eq!(
+            classify(&chain(&["aim_dsp::idframe::IdExtractor::compute", spectral, push])),
+            Some(Probe::Features)
+        );
         assert_eq!(
             classify(&chain(&["aim_dsp::frontend::FrontEnd::remove_dc", push])),
             Some(Probe::PipelineOther)

@@ -294,6 +294,23 @@ impl Printer {
                     }
                 }
             }
+            Output::Mfcc(f) => {
+                let t = f.sample_index as f64 / self.fs;
+                let f0 = 250.0 * f64::from(f.harmonic.log2_f0).exp2();
+                if self.jsonl {
+                    serde_json::json!({
+                        "kind": "mfcc", "t": t, "mfcc_db": f.mfcc_db.to_vec(),
+                        "log_mel_db": f.log_mel_db.to_vec(), "comb_f0_hz": f0,
+                        "comb_salience_db": f.harmonic.salience_db,
+                    })
+                    .to_string()
+                } else {
+                    format!(
+                        "{t:9.3} s  mfcc   c0 {:7.1} dB  c1 {:6.1} dB  comb f0 {f0:7.1} Hz  salience {:.1} dB",
+                        f.mfcc_db[0], f.mfcc_db[1], f.harmonic.salience_db
+                    )
+                }
+            }
             Output::Health(h) => {
                 self.counts[2] += 1;
                 let t = h.sample_index as f64 / self.fs;

@@ -397,9 +397,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let run_dir = Path::new("runs").join(&fam.name).join(format!("seed-{seed}"));
         let dir = args.out.join(&run_dir);
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        let choose = suite.profile.is_none();
         let runs = if let Some(from) = &args.rescore {
             let recorded = Recorded::load(&from.join(&run_dir))?;
-            track_recorded(&recorded, &dir, &profile, &suite.filters, suite.period_s)?
+            track_recorded(&recorded, &dir, &profile, &suite.filters, suite.period_s, choose)?
         } else {
             let scenario = Scenario::load_with(&fam.scenario, seed, &fam.overrides)?;
             let (sim, links) = host_sim::eval::link::simulate_links(
@@ -408,7 +409,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &indicatif::ProgressBar::hidden(),
                 host_sim::DEFAULT_FULL_SCALE_PA,
             )?;
-            track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s)?
+            track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s, choose)?
         };
         Ok(runs
             .into_iter()

@@ -86,7 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )
     .with_context(|| format!("simulating {}", args.scenario.display()))?;
     progress.finish_and_clear();
-    let runs = track(&sim, &links, &out, &profile, &kinds, args.period)?;
+    let runs = track(&sim, &links, &out, &profile, &kinds, args.period, args.profile.is_none())?;
     for r in &runs {
         if let Some(line) = no_fix_line(&scenario.name, r) {
             println!("{line}");
@@ -126,6 +126,7 @@ pub(crate) fn track(
     profile: &Profile,
     kinds: &[FilterKind],
     period: f64,
+    choose_profile: bool,
 ) -> anyhow::Result<Vec<TrackRun>> {
     // The tracker reads the site file the simulator writes, as `aim replay` would.
     let site_text = sim.site.to_toml()?;
@@ -145,7 +146,7 @@ pub(crate) fn track(
     }
     let recorded =
         Recorded { site_text, site: sim.site.clone(), truth: sim.truth.clone(), raw_paths };
-    track_recorded(&recorded, out, profile, kinds, period)
+    track_recorded(&recorded, out, profile, kinds, period, choose_profile)
 }
 
 /// A run as `fly` leaves it on disk: the site file's text and content, the truth, and each
@@ -198,13 +199,15 @@ impl Recorded {
 
 /// Tracks a recorded run with each filter of `kinds`, exactly as `aim replay` reads it (the
 /// site file's text, the link's bytes in link order), scores the fixes against the truth and
-/// writes each filter's `track.csv`, `fixes.jsonl` and plot under `out`.
+/// writes each filter's `track.csv`, `fixes.jsonl` and plot under `out`. With
+/// `choose_profile` the profile follows the drone type the bundled classifier recognises.
 pub(crate) fn track_recorded(
     rec: &Recorded,
     out: &Path,
     profile: &Profile,
     kinds: &[FilterKind],
     period: f64,
+    choose_profile: bool,
 ) -> anyhow::Result<Vec<TrackRun>> {
     let site = aim_tracker::site::Site::parse(&rec.site_text, &out.join("site.toml"))?;
     let mut runs = Vec::new();
@@ -222,7 +225,17 @@ pub(crate) fn track_recorded(
             .with_context(|| format!("no recording of array {tracked}"))?;
         let name = raw_path.display().to_string();
         let mut source = FrameSource::new(aim_tracker::link::open_input(&name)?);
-        let mut session = Session::new(tracker, site.clone(), IntakeConfig::default());
+        // The drone classifier `aim replay` runs by default (the bundled model); the profile
+        // follows the recognised type only when none was given, as there.
+        let model = aim_tracker::id::default_model();
+        let profiles = if choose_profile {
+            aim_tracker::id::class_profiles(None, &model.classes)?
+        } else {
+            Vec::new()
+        };
+        let identifier = aim_tracker::session::Identifier::new(model, profiles)?;
+        let mut session = Session::new(tracker, site.clone(), IntakeConfig::default())
+            .with_identifier(identifier);
         let mut fixes = Vec::new();
         session
             .track_reader(&mut source, &mut |f| {

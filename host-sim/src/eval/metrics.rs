@@ -182,6 +182,7 @@ mod tests {
                     resets: 0,
                     motion: if k < 6 { MotionClass::Hover } else { MotionClass::Horizontal },
                     los: true,
+                    drone: None,
                 }
             })
             .collect();

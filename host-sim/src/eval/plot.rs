@@ -341,6 +341,7 @@ mod tests {
             resets: 0,
             motion: aim_tracker::motion::MotionClass::Hover,
             los,
+            drone: None,
             available: t,
         };
         let fixes =
@@ -393,6 +394,7 @@ mod tests {
                     resets: 0,
                     motion: aim_tracker::motion::MotionClass::Horizontal,
                     los: !(40..60).contains(&k),
+                    drone: None,
                 }
             })
             .collect();

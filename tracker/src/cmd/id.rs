@@ -1,9 +1,11 @@
 //! `aim id train | eval | classify`: is a drone in a recording, and which type
 //! ([`aim_tracker::id`]).
 //!
-//! - `aim id train DIR --out MODEL`: DIR holds one folder per class of WAV recordings (mono or
-//!   multichannel, 16 or 48 kHz, any length from 0.25 s; a class `none` for no drone);
-//!   writes the model (JSON).
+//! - `aim id train DIR --out MODEL [--features clip|chip]`: DIR holds one folder per class of
+//!   WAV recordings (mono or multichannel, 16 or 48 kHz, any length from 0.25 s — 0.8 s with
+//!   `chip`; a class `none` for no drone); writes the model (JSON). `--features chip` trains
+//!   on what the chip sends (`Mfcc` frames, windows of 6), the model `aim track --id-model`
+//!   needs.
 //! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--json]`: the confusion matrix,
 //!   per-class precision and recall, the type accuracy among drone clips and the detection ROC
 //!   (drone probability against `none`) with the threshold at the stated false-alarm rate.
@@ -13,7 +15,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use aim_dsp::features::Extractor;
-use aim_tracker::id::{audio, clip, dataset, metrics, model, NONE_CLASS};
+use aim_tracker::id::{audio, chip, clip, dataset, metrics, model, NONE_CLASS};
 use anyhow::{bail, Context as _};
 
 /// Arguments of `aim id`.
@@ -52,6 +54,11 @@ struct TrainArgs {
     /// Seed of the initial weights and batch order.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Features: `clip` (the 16 kHz frame features of the whole clip, `aim_tracker::id::clip`)
+    /// or `chip` (windows of the `Mfcc` frames the chip's pipeline makes of the recording,
+    /// `aim_tracker::id::chip`: what `aim track` classifies live).
+    #[arg(long, default_value = "clip", value_parser = ["clip", "chip"])]
+    features: String,
 }
 
 #[derive(clap::Args)]
@@ -88,14 +95,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-fn features_of(path: &Path, ex: &Extractor) -> anyhow::Result<Vec<f32>> {
+/// The feature vectors of one recording: one (`clip`), or one per window of `Mfcc` frames
+/// (`chip`: at least one).
+fn features_of(path: &Path, ex: &Extractor, chip_frames: bool) -> anyhow::Result<Vec<Vec<f32>>> {
+    if chip_frames {
+        let (x, rate) = audio::read_mono(path)?;
+        let frames: Vec<aim_wire::Mfcc> =
+            chip::frames_of_recording(&x, rate)?.into_iter().map(|(_, m)| m).collect();
+        let w = chip::windows(&frames);
+        if w.is_empty() {
+            bail!(
+                "{}: {} Mfcc frames, at least {} needed (about 0.8 s of audio)",
+                path.display(),
+                frames.len(),
+                chip::MIN_FRAMES
+            );
+        }
+        return Ok(w);
+    }
     let x = audio::read_mono_16k(path)?;
-    Ok(clip::features(&x, ex))
+    Ok(vec![clip::features(&x, ex)])
 }
 
 /// Feature vectors and labels of every clip of `classes`, labels from `index`.
 fn load(
     classes: &[dataset::Class],
+    chip_frames: bool,
     index: impl Fn(&str) -> anyhow::Result<usize>,
 ) -> anyhow::Result<(Vec<Vec<f32>>, Vec<usize>)> {
     let ex = Extractor::new();
@@ -103,8 +128,10 @@ fn load(
     for c in classes {
         let label = index(&c.name)?;
         for f in &c.files {
-            x.push(features_of(f, &ex)?);
-            y.push(label);
+            for v in features_of(f, &ex, chip_frames)? {
+                x.push(v);
+                y.push(label);
+            }
         }
     }
     Ok((x, y))
@@ -120,7 +147,9 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
         bail!("{}: one class ({}); training needs at least two", a.dir.display(), classes[0].name);
     }
     let names: Vec<String> = classes.iter().map(|c| c.name.clone()).collect();
-    let (x, y) = load(&classes, |n| Ok(names.iter().position(|c| c == n).unwrap_or(0)))?;
+    let chip_frames = a.features == "chip";
+    let (x, y) =
+        load(&classes, chip_frames, |n| Ok(names.iter().position(|c| c == n).unwrap_or(0)))?;
     let t = model::Training {
         epochs: a.epochs,
         hidden_units: a.hidden.max(1),
@@ -128,7 +157,8 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
         seed: a.seed,
         ..model::Training::default()
     };
-    let m = model::Model::train(clip::names(), names.clone(), &x, &y, t)?;
+    let feature_names = if chip_frames { chip::names() } else { clip::names() };
+    let m = model::Model::train(feature_names, names.clone(), &x, &y, t)?;
     m.save(&a.out)?;
     let right = x.iter().zip(&y).filter(|(v, &c)| argmax(&m.predict(v)) == c).count();
     let mut out = std::io::stdout().lock();
@@ -152,7 +182,7 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
     }
     let m = model::Model::load(&a.model)?;
     let classes = dataset::scan(&a.dir)?;
-    let (x, y) = load(&classes, |n| {
+    let (x, y) = load(&classes, m.reads_chip_frames(), |n| {
         m.classes.iter().position(|c| c == n).with_context(|| {
             format!(
                 "{}: class `{n}` is not one the model knows ({})",
@@ -275,7 +305,14 @@ fn classify(a: ClassifyArgs) -> anyhow::Result<()> {
     let ex = Extractor::new();
     let mut out = std::io::stdout().lock();
     for f in &a.wav {
-        let p = m.predict(&features_of(f, &ex)?);
+        // A longer recording read as chip frames: the windows' probabilities averaged.
+        let windows = features_of(f, &ex, m.reads_chip_frames())?;
+        let mut p = vec![0.0f32; m.classes.len()];
+        for v in &windows {
+            for (a, b) in p.iter_mut().zip(m.predict(v)) {
+                *a += b / windows.len() as f32;
+            }
+        }
         let best = argmax(&p);
         let probabilities: serde_json::Map<String, serde_json::Value> =
             m.classes.iter().zip(&p).map(|(c, v)| (c.clone(), serde_json::json!(v))).collect();

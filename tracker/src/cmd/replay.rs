@@ -1,7 +1,9 @@
 //! `aim replay FRAMES --site SITE.toml`: track from a recording of frames (or `-` for stdin)
 //! and print one JSON fix per output period:
-//! `{"t":..,"available":..,"x":..,"y":..,"z":..,"motion":"hover|yaw|horizontal|vertical","los":true|false}`
-//! (`t`: the instant it describes; `available`: when the array had sent what it used, s), then
+//! `{"t":..,"available":..,"x":..,"y":..,"z":..,"motion":"hover|yaw|horizontal|vertical","los":true|false,"drone":..}`
+//! (`t`: the instant it describes; `available`: when the array had sent what it used, s;
+//! `drone`: the classifier's verdict on the array's last 6 `Mfcc` frames,
+//! `{"class":..,"p":..}`, `"none"`, or `null` before the first full window), then
 //! one statistics line (`{"kind":"stats",...}`: link, intake and latency counts) on stderr.
 
 use std::io::Write as _;
@@ -14,7 +16,7 @@ use aim_tracker::output::mavlink::MavlinkOut;
 use aim_tracker::output::ned::Origin;
 use aim_tracker::profile::Profile;
 use aim_tracker::serve::tap::Tap;
-use aim_tracker::session::Session;
+use aim_tracker::session::{Identifier, Session};
 use aim_tracker::site::Site;
 use aim_tracker::tracker::{Tracker, TrackerConfig};
 use anyhow::Context as _;
@@ -25,9 +27,23 @@ pub struct TrackOptions {
     /// Site file: the arrays' ids, positions and orientation (TOML).
     #[arg(long)]
     pub site: PathBuf,
-    /// Drone profile (TOML); default: the bundled DJI Mini 2.
+    /// Drone profile (TOML); default: the bundled DJI Mini 2, replaced by the profile of the
+    /// type the drone classifier recognises (see `--id-profiles`). Given, it stays.
     #[arg(long)]
     pub profile: Option<PathBuf>,
+    /// Drone classifier (`aim id train --features chip`) for the `drone` field of every fix,
+    /// read from the tracked array's `Mfcc` frames; default: the bundled model trained on
+    /// simulated drones (host-sim's six types and negatives).
+    #[arg(long, value_name = "FILE")]
+    pub id_model: Option<PathBuf>,
+    /// No drone classifier: fixes without a `drone` field, the profile never changes.
+    #[arg(long, conflicts_with = "id_model")]
+    pub no_id: bool,
+    /// Folder of profiles named after the classifier's classes (`<class>.toml`), which the
+    /// tracker takes when it recognises a class (without `--profile`); `dji-mini-2` is
+    /// bundled.
+    #[arg(long, value_name = "DIR")]
+    pub id_profiles: Option<PathBuf>,
     /// Filter: `aim` (position–velocity EKF mixture) or `paper` (the paper's baseline).
     #[arg(long, default_value = "aim")]
     pub filter: FilterKind,
@@ -86,7 +102,26 @@ impl TrackOptions {
         };
         let tracker = Tracker::new(site.clone(), profile, self.filter, config)
             .with_context(|| format!("site {}", self.site.display()))?;
-        Ok(Session::new(tracker, site, IntakeConfig::default()))
+        let session = Session::new(tracker, site, IntakeConfig::default());
+        if self.no_id {
+            return Ok(session);
+        }
+        let model = match &self.id_model {
+            Some(p) => aim_tracker::id::model::Model::load(p)?,
+            None => aim_tracker::id::default_model(),
+        };
+        let profiles = if self.profile.is_some() {
+            Vec::new()
+        } else {
+            aim_tracker::id::class_profiles(self.id_profiles.as_deref(), &model.classes)?
+        };
+        let identifier = Identifier::new(model, profiles).with_context(|| {
+            format!(
+                "--id-model {}",
+                self.id_model.as_deref().map_or("(bundled)".into(), |p| p.display().to_string())
+            )
+        })?;
+        Ok(session.with_identifier(identifier))
     }
 }
 

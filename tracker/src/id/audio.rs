@@ -16,6 +16,18 @@ pub const MIN_SECS: f64 = 0.25;
 
 /// Reads `path` as one 16 kHz channel. Errors name the file and the problem.
 pub fn read_mono_16k(path: &Path) -> anyhow::Result<Vec<f32>> {
+    let (mono, rate) = read_mono(path)?;
+    let out = if rate == 48_000 { decimate_by_3(&mono) } else { mono };
+    let secs = out.len() as f64 / f64::from(RATE_HZ);
+    if secs < MIN_SECS {
+        bail!("{}: {secs:.3} s of audio, at least {MIN_SECS} s needed", path.display());
+    }
+    Ok(out)
+}
+
+/// Reads `path` as one channel (the channels' mean) at its own rate, 16 or 48 kHz: (samples,
+/// rate in Hz). Errors name the file and the problem.
+pub fn read_mono(path: &Path) -> anyhow::Result<(Vec<f32>, u32)> {
     let reader = hound::WavReader::open(path)
         .with_context(|| format!("{}: not a readable WAV file", path.display()))?;
     let spec = reader.spec();
@@ -42,18 +54,17 @@ pub fn read_mono_16k(path: &Path) -> anyhow::Result<Vec<f32>> {
     }
     let mono: Vec<f32> =
         samples.chunks_exact(channels).map(|f| f.iter().sum::<f32>() / channels as f32).collect();
-    let out = match spec.sample_rate {
-        16_000 => mono,
-        48_000 => decimate_by_3(&mono),
+    match spec.sample_rate {
+        16_000 | 48_000 => {}
         other => {
             bail!("{}: sample rate {other} Hz is not supported (16000 or 48000 Hz)", path.display())
         }
-    };
-    let secs = out.len() as f64 / f64::from(RATE_HZ);
+    }
+    let secs = mono.len() as f64 / f64::from(spec.sample_rate);
     if secs < MIN_SECS {
         bail!("{}: {secs:.3} s of audio, at least {MIN_SECS} s needed", path.display());
     }
-    Ok(out)
+    Ok((mono, spec.sample_rate))
 }
 
 /// Taps of the 48 → 16 kHz anti-aliasing filter.

@@ -3,6 +3,8 @@
 //!
 //! - [`audio`]: a WAV file (mono or multichannel, 16 or 48 kHz, integer or float) to one
 //!   16 kHz channel;
+//! - [`chip`]: the feature vector of a window of the chip's `Mfcc` frames (what `aim track`
+//!   classifies live), and those frames computed from a recording by the chip's pipeline;
 //! - [`clip`]: a clip's feature vector from the per-frame features of `aim_dsp::features` (the
 //!   same code the chip would run) aggregated over the clip;
 //! - [`dataset`]: a folder of labelled recordings, one subfolder per class;
@@ -16,6 +18,7 @@
 //! does, without a filter bank per known type, and a clip-level model needs far less training
 //! data than a sequence model.
 pub mod audio;
+pub mod chip;
 pub mod clip;
 pub mod dataset;
 pub mod metrics;
@@ -23,3 +26,33 @@ pub mod model;
 
 /// Name of the class of recordings without a drone.
 pub const NONE_CLASS: &str = "none";
+
+/// The bundled drone classifier: trained with `aim id train --features chip` on host-sim's
+/// simulated drones and negatives (`host-sim id-dataset`; seeds and command in BENCHMARKS.md,
+/// "Issue 16 on the chip").
+pub fn default_model() -> model::Model {
+    model::Model::from_json(
+        include_str!("../../models/drone-id-chip.json"),
+        std::path::Path::new("tracker/models/drone-id-chip.json"),
+    )
+    .expect("the bundled model is valid")
+}
+
+/// The profiles the tracker may switch to, by class: `DIR/<class>.toml` for every class of
+/// `classes` that has one in `dir`, and the bundled DJI Mini 2 for `dji-mini-2` unless `dir`
+/// has its own. Profiles hold published or calibrated values, never the simulator's.
+pub fn class_profiles(
+    dir: Option<&std::path::Path>,
+    classes: &[String],
+) -> anyhow::Result<Vec<(String, crate::profile::Profile)>> {
+    let mut out = Vec::new();
+    for c in classes.iter().filter(|c| *c != NONE_CLASS) {
+        let file = dir.map(|d| d.join(format!("{c}.toml"))).filter(|p| p.is_file());
+        if let Some(p) = file {
+            out.push((c.clone(), crate::profile::Profile::load(&p)?));
+        } else if c == "dji-mini-2" {
+            out.push((c.clone(), crate::profile::Profile::dji_mini_2()));
+        }
+    }
+    Ok(out)
+}

@@ -315,7 +315,18 @@ impl Model {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read model {}", path.display()))?;
-        let m: Model = serde_json::from_str(&text)
+        Self::from_json(&text, path)
+    }
+
+    /// Whether the model reads the chip's `Mfcc` windows ([`super::chip`]) rather than the
+    /// 16 kHz clip features ([`super::clip`]).
+    pub fn reads_chip_frames(&self) -> bool {
+        self.features == super::chip::names()
+    }
+
+    /// Parses and checks a model's JSON text (`path`: named in errors).
+    pub fn from_json(text: &str, path: &Path) -> anyhow::Result<Self> {
+        let m: Model = serde_json::from_str(text)
             .with_context(|| format!("{}: not an aim id model", path.display()))?;
         if m.format != FORMAT {
             bail!("{}: model format `{}`, this aim reads `{FORMAT}`", path.display(), m.format);
@@ -340,7 +351,7 @@ impl Model {
                 path.display()
             );
         }
-        if m.features != super::clip::names() {
+        if m.features != super::clip::names() && m.features != super::chip::names() {
             bail!(
                 "{}: model made for other features ({} of them); retrain with this aim",
                 path.display(),

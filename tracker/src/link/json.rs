@@ -114,6 +114,26 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
             "mic_dc_dbfs": mic_levels.1,
             })
         }
+        Body::Mfcc(p) => {
+            let h = p.harmonic_values();
+            json!({
+                "span_samples": p.span_samples,
+                "log_mel_db": (0..aim_wire::MFCC_MEL_BANDS)
+                    .map(|b| round(f64::from(p.log_mel_cdb[b]) / 100.0, 2))
+                    .collect::<Vec<_>>(),
+                "mfcc_db": (0..aim_wire::MFCC_COEFFS)
+                    .map(|c| round(f64::from(p.mfcc_ddb[c]) / 10.0, 1))
+                    .collect::<Vec<_>>(),
+                "comb_f0_hz": round(250.0 * f64::from(h[0]).exp2(), 2),
+                "comb_salience_db": round(f64::from(p.harmonic[1]) / 100.0, 2),
+                "comb_half_db": round(f64::from(p.harmonic[2]) / 100.0, 2),
+                "comb_third_db": round(f64::from(p.harmonic[3]) / 100.0, 2),
+                "comb_envelope_db": p.harmonic[4..]
+                    .iter()
+                    .map(|&v| round(f64::from(v) / 100.0, 2))
+                    .collect::<Vec<_>>(),
+            })
+        }
         // A kind added to aim-wire but not yet here: header only.
         #[allow(unreachable_patterns)]
         _ => json!({}),
@@ -196,6 +216,22 @@ mod tests {
             v["peaks"],
             json!([{"hz":187.5,"amp_db":-20.3,"harmonicity":1.0,"quality":0.2}])
         );
+    }
+
+    #[test]
+    fn mfcc_in_physical_units() {
+        let mut m = aim_wire::Mfcc { span_samples: 24_576, ..Default::default() };
+        m.log_mel_cdb[3] = -6_346;
+        m.mfcc_ddb[0] = -3_913;
+        m.harmonic = [392, 1_713, 845, 96, -412, 0, 0, 0, -3_333];
+        let f = Frame { header: Header::default(), body: Body::Mfcc(m) };
+        let v = frame(&f, None);
+        assert_eq!(v["kind"], json!("mfcc"));
+        assert_eq!((&v["log_mel_db"][3], &v["mfcc_db"][0]), (&json!(-63.46), &json!(-391.3)));
+        // 250 Hz · 2^0.392 = 328.05 Hz.
+        assert_eq!(v["comb_f0_hz"], json!(328.05));
+        assert_eq!((&v["comb_salience_db"], &v["comb_third_db"]), (&json!(17.13), &json!(0.96)));
+        assert_eq!(v["comb_envelope_db"], json!([-4.12, 0.0, 0.0, 0.0, -33.33]));
     }
 
     #[test]

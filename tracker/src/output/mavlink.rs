@@ -209,6 +209,7 @@ mod tests {
             resets,
             motion: MotionClass::Hover,
             los: true,
+            drone: None,
         }
     }
 

@@ -225,6 +225,7 @@ mod tests {
             covariance: [[0.25, 0.0, 0.0], [0.0, 0.16, 0.0], [0.0, 0.0, 0.09]],
             motion: crate::motion::MotionClass::Hover,
             los: true,
+            drone: None,
             resets: 0,
         }
     }

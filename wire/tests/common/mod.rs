@@ -102,7 +102,20 @@ pub fn sample_frames() -> Vec<Frame> {
                 mic_levels: aim_wire::MicLevels::default(),
             }),
         },
+        Frame { header: header(4, 3_072_000), body: Body::Mfcc(sample_mfcc()) },
     ]
+}
+
+/// An `Mfcc` payload as a hovering drone at 4 m gives (levels of a real run, rounded): a
+/// falling log-mel spectrum, its cepstrum, a 328 Hz comb with 2-blade shaft lines.
+pub fn sample_mfcc() -> aim_wire::Mfcc {
+    let mut m = aim_wire::Mfcc { span_samples: 24_576, ..Default::default() };
+    for (b, v) in m.log_mel_cdb.iter_mut().enumerate() {
+        *v = -5_200 - 150 * b as i16;
+    }
+    m.mfcc_ddb = [-3_560, 245, -31, 12, -8, 40, -3, 5, 0, -17, 2, 9, -1];
+    m.harmonic = [392, 2_112, 845, 96, -412, -905, -1_288, -1_702, -2_203];
+    m
 }
 
 /// The sample `Hello` as a board reports its start: after a panic, second boot since power-on.
@@ -174,6 +187,12 @@ pub fn worst_case(kind: Kind) -> Frame {
                 dc_ddbfs: [i16::MIN; aim_wire::MAX_MICS],
             },
         }),
+        Kind::Mfcc => Body::Mfcc(aim_wire::Mfcc {
+            span_samples: u32::MAX,
+            log_mel_cdb: [i16::MIN; aim_wire::MFCC_MEL_BANDS],
+            mfcc_ddb: [i16::MIN; aim_wire::MFCC_COEFFS],
+            harmonic: [i16::MIN; aim_wire::MFCC_HARMONIC],
+        }),
         _ => unreachable!("a kind without a worst case: add it here"),
     };
     Frame { header, body }
@@ -183,7 +202,7 @@ pub fn worst_case(kind: Kind) -> Frame {
 pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
     let header = Header { array_id, seq, sample_index: rng.u64() >> rng.below(64) };
     let small = |rng: &mut Rng| (rng.u64() >> rng.below(64)) as u32;
-    let body = match rng.below(4) {
+    let body = match rng.below(5) {
         0 => Body::Hello(Hello {
             firmware_version: [rng.byte(), rng.byte(), rng.byte()],
             sample_rate_hz: small(rng),
@@ -221,6 +240,12 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
                 .collect(),
             detection: [Detection::Unstated, Detection::NoRotor, Detection::Rotor][rng.below(3)],
             quality: (0..rng.below(MAX_PEAKS + 1)).map(|_| rng.byte()).collect(),
+        }),
+        3 => Body::Mfcc(aim_wire::Mfcc {
+            span_samples: small(rng),
+            log_mel_cdb: core::array::from_fn(|_| rng.u64() as i16),
+            mfcc_ddb: core::array::from_fn(|_| rng.u64() as i16),
+            harmonic: core::array::from_fn(|_| rng.u64() as i16),
         }),
         _ => Body::Health(Health {
             blocks: small(rng),

@@ -34,6 +34,9 @@ pub enum Probe {
     Encode = 9,
     /// PDM decimation (`aim_dsp::pdm`): PDM bytes to the pipeline's 48 kHz words.
     Pdm = 10,
+    /// Drone-identification features of the BPF spectrum (`aim_dsp::idframe`): log-mel, MFCC,
+    /// comb features.
+    Features = 11,
     /// Writes the totals of the section that ends here.
     Dump = 15,
 }
@@ -43,7 +46,7 @@ pub const SLOTS: usize = 16;
 
 impl Probe {
     /// Every probe, in id order.
-    pub const ALL: [Probe; 12] = [
+    pub const ALL: [Probe; 13] = [
         Probe::Untracked,
         Probe::Input,
         Probe::PipelineOther,
@@ -55,6 +58,7 @@ impl Probe {
         Probe::ReferenceRfft,
         Probe::Encode,
         Probe::Pdm,
+        Probe::Features,
         Probe::Dump,
     ];
 
@@ -82,6 +86,7 @@ impl Probe {
             Probe::ReferenceRfft => "rfft1024",
             Probe::Encode => "encode",
             Probe::Pdm => "pdm",
+            Probe::Features => "features",
             Probe::Dump => "dump",
         }
     }
@@ -97,6 +102,7 @@ impl Probe {
                 | Probe::Doa
                 | Probe::Bpf
                 | Probe::Pdm
+                | Probe::Features
         )
     }
 }

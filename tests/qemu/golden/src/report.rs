@@ -165,6 +165,13 @@ pub fn write_output(w: &mut impl Write, output: &Output) -> fmt::Result {
             }
         }
         Output::Health(h) => write!(w, "health {} {:08x}", h.sample_index, h.peak_dbfs.to_bits())?,
+        Output::Mfcc(f) => {
+            write!(w, "mfcc {}", f.sample_index)?;
+            let harmonic = f.harmonic.to_array();
+            for v in f.log_mel_db.iter().chain(&f.mfcc_db).chain(&harmonic) {
+                write!(w, " {:08x}", v.to_bits())?;
+            }
+        }
     }
     // Debug prints every field (also ones added later) with round-trip exact floats.
     writeln!(w, " | {output:?}")

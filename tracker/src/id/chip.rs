@@ -1,0 +1,215 @@
+//! The classifier's input from what the chip sends: `Mfcc` frames (aim-dsp `idframe`, one per
+//! 0.256 s BPF analysis of 0.512 s) aggregated over a window of [`WINDOW_FRAMES`] frames.
+//!
+//! Live (`aim track`, `aim replay`), the window is the tracked array's last [`WINDOW_FRAMES`]
+//! frames; for training and evaluation (`aim id ... --features chip`), a recording runs
+//! through the very pipeline the chip runs ([`frames_of_recording`]: aim-dsp at the
+//! recording's rate, its mono signal on every microphone, outputs quantised by
+//! `aim_wire::from_dsp`), so a model sees the numbers the link carries, bit for bit.
+//!
+//! Per window, in this order ([`names`]):
+//! - MFCC c1..c12: mean and standard deviation over the frames (24; c0, the level, is dropped);
+//! - log-mel bands minus the frame's mean band level, mean over the frames (24);
+//! - comb features: median fundamental (octaves re 250 Hz), its standard deviation, mean
+//!   salience, half-, third-way levels and harmonic envelope (10);
+//! - the fundamental, half-, third-way levels and envelope averaged with weights
+//!   `max(0, salience − 3 dB)²` (8), the largest salience (1), the spectral flux (mean absolute
+//!   frame-to-frame change of the level-free log-mel, dB; 1) and the share of frames whose
+//!   fundamental is within 1/12 octave of the previous frame's (1).
+use aim_dsp::{Config, Geometry, Output, Pipeline};
+use aim_wire::{Mfcc, MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS};
+
+/// Frames per classification window: 1.5 s of hops plus the 0.512 s analysis window, 2.05 s
+/// of audio (a 2 s clip at 16 kHz gives 6 frames).
+pub const WINDOW_FRAMES: usize = 6;
+/// Fewest frames a window may have.
+pub const MIN_FRAMES: usize = 2;
+/// Length of a window's feature vector.
+pub const FEATURES: usize = 2 * (MFCC_COEFFS - 1) + MFCC_MEL_BANDS + (MFCC_HARMONIC + 1) + 11;
+
+/// Names of the features, in vector order (prefixed `chip_`: a model records them, and one
+/// made for the 16 kHz clip features is not mistaken for one of these).
+pub fn names() -> Vec<String> {
+    let mut v = Vec::with_capacity(FEATURES);
+    for c in 1..MFCC_COEFFS {
+        v.push(format!("chip_mfcc{c}_mean"));
+    }
+    for c in 1..MFCC_COEFFS {
+        v.push(format!("chip_mfcc{c}_sd"));
+    }
+    for b in 0..MFCC_MEL_BANDS {
+        v.push(format!("chip_mel{b}_rel_db"));
+    }
+    let h = ["log2_f0", "salience_db", "half_db", "third_db", "env2_db", "env3_db", "env4_db"];
+    let h: Vec<&str> = h.into_iter().chain(["env5_db", "env6_db"]).collect();
+    v.push("chip_log2_f0_median".into());
+    v.push("chip_log2_f0_sd".into());
+    for n in &h[1..] {
+        v.push(format!("chip_{n}_mean"));
+    }
+    for n in h.iter().filter(|n| **n != "salience_db") {
+        v.push(format!("chip_weighted_{n}"));
+    }
+    v.push("chip_salience_max_db".into());
+    v.push("chip_log_mel_flux_db".into());
+    v.push("chip_f0_continuity".into());
+    debug_assert_eq!(v.len(), FEATURES);
+    v
+}
+
+fn mean_sd(x: impl Iterator<Item = f32> + Clone) -> (f32, f32) {
+    let n = x.clone().count().max(1) as f32;
+    let m = x.clone().sum::<f32>() / n;
+    let var = x.map(|v| (v - m) * (v - m)).sum::<f32>() / n;
+    (m, var.sqrt())
+}
+
+/// The feature vector of a window of frames (oldest first; at least one).
+pub fn features(frames: &[Mfcc]) -> Vec<f32> {
+    let mut v = Vec::with_capacity(FEATURES);
+    let stats: Vec<(f32, f32)> =
+        (1..MFCC_COEFFS).map(|c| mean_sd(frames.iter().map(move |f| f.mfcc_db(c)))).collect();
+    v.extend(stats.iter().map(|s| s.0));
+    v.extend(stats.iter().map(|s| s.1));
+    let rel = |f: &Mfcc| -> [f32; MFCC_MEL_BANDS] {
+        let l: [f32; MFCC_MEL_BANDS] = core::array::from_fn(|b| f.log_mel_db(b));
+        let m = l.iter().sum::<f32>() / MFCC_MEL_BANDS as f32;
+        l.map(|x| x - m)
+    };
+    let rels: Vec<[f32; MFCC_MEL_BANDS]> = frames.iter().map(rel).collect();
+    for b in 0..MFCC_MEL_BANDS {
+        v.push(mean_sd(rels.iter().map(move |r| r[b])).0);
+    }
+    let h: Vec<[f32; MFCC_HARMONIC]> = frames.iter().map(Mfcc::harmonic_values).collect();
+    let mut f0: Vec<f32> = h.iter().map(|a| a[0]).collect();
+    f0.sort_by(f32::total_cmp);
+    v.push(f0.get(f0.len() / 2).copied().unwrap_or(0.0));
+    v.push(mean_sd(h.iter().map(|a| a[0])).1);
+    for i in 1..MFCC_HARMONIC {
+        v.push(mean_sd(h.iter().map(move |a| a[i])).0);
+    }
+    let w: Vec<f32> = h.iter().map(|a| (a[1] - 3.0).max(0.0).powi(2) + 1e-6).collect();
+    let wsum: f32 = w.iter().sum();
+    for i in (0..MFCC_HARMONIC).filter(|&i| i != 1) {
+        v.push(h.iter().zip(&w).map(|(a, w)| a[i] * w).sum::<f32>() / wsum);
+    }
+    v.push(h.iter().map(|a| a[1]).fold(0.0, f32::max));
+    let pairs = frames.len().saturating_sub(1).max(1) as f32;
+    let flux: f32 = rels
+        .windows(2)
+        .map(|p| p[0].iter().zip(&p[1]).map(|(x, y)| (x - y).abs()).sum::<f32>())
+        .sum::<f32>()
+        / (MFCC_MEL_BANDS as f32 * pairs);
+    v.push(flux);
+    let steady = h.windows(2).filter(|p| (p[0][0] - p[1][0]).abs() < 1.0 / 12.0).count();
+    v.push(steady as f32 / pairs);
+    debug_assert_eq!(v.len(), FEATURES);
+    v
+}
+
+/// The `Mfcc` frames the chip sends for a mono recording at `rate_hz` (16 or 48 kHz; samples
+/// as fractions of full scale, clipped to ±1): the signal on every microphone of a 4-mic
+/// array, 24-bit words, through [`aim_dsp::Pipeline`] with its defaults, each output quantised
+/// by `aim_wire::from_dsp::mfcc`, with the sample index its frame header would carry. The
+/// first frame covers the first 0.512 s.
+pub fn frames_of_recording(mono: &[f32], rate_hz: u32) -> anyhow::Result<Vec<(u64, Mfcc)>> {
+    let config = Config::new(Geometry::respeaker_4mic(), rate_hz);
+    let mut pipeline = Pipeline::new(&config)
+        .map_err(|e| anyhow::anyhow!("the pipeline refuses {rate_hz} Hz: {e}"))?;
+    let slots = config.tdm_slots;
+    let mut frames = Vec::new();
+    let mut words = Vec::with_capacity(1024 * slots);
+    for chunk in mono.chunks(1024) {
+        words.clear();
+        for &x in chunk {
+            let s = (x.clamp(-1.0, 1.0) * 8_388_607.0).round() as i32;
+            words.extend(std::iter::repeat_n(s << 8, slots));
+        }
+        pipeline.push(&words, &mut |o| {
+            if let Output::Mfcc(f) = o {
+                frames.push((f.sample_index, aim_wire::from_dsp::mfcc(&f)));
+            }
+        });
+    }
+    Ok(frames)
+}
+
+/// The feature vectors of a recording: one per window of [`WINDOW_FRAMES`] consecutive frames,
+/// windows `WINDOW_FRAMES` apart (a recording shorter than one window but with at least
+/// [`MIN_FRAMES`] frames gives one vector of all its frames).
+pub fn windows(frames: &[Mfcc]) -> Vec<Vec<f32>> {
+    if frames.len() < MIN_FRAMES {
+        return Vec::new();
+    }
+    if frames.len() < WINDOW_FRAMES {
+        return vec![features(frames)];
+    }
+    frames.chunks_exact(WINDOW_FRAMES).map(features).collect()
+}
+
+/// The live classifier of one array: the last [`WINDOW_FRAMES`] frames and the model's verdict
+/// on them.
+#[derive(Debug, Clone)]
+pub struct Live {
+    model: super::model::Model,
+    frames: std::collections::VecDeque<Mfcc>,
+    verdict: Option<Verdict>,
+}
+
+/// The classifier's verdict on the newest window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verdict {
+    /// Most probable class (`none`: no drone).
+    pub class: String,
+    /// Its probability, 0–1.
+    pub probability: f32,
+    /// Probability that a drone is there (1 − P(none)), 0–1.
+    pub drone_probability: f32,
+}
+
+impl Live {
+    /// A live classifier with `model` (made with `--features chip`; anything else is refused).
+    pub fn new(model: super::model::Model) -> anyhow::Result<Self> {
+        if model.features != names() {
+            anyhow::bail!(
+                "the model was trained on other features than the chip's Mfcc frames (train it \
+                 with `aim id train --features chip`)"
+            );
+        }
+        Ok(Self { model, frames: Default::default(), verdict: None })
+    }
+
+    /// The model's classes.
+    pub fn classes(&self) -> &[String] {
+        &self.model.classes
+    }
+
+    /// One frame of the tracked array (link order); classifies once the window is full.
+    pub fn push(&mut self, frame: &Mfcc) {
+        if self.frames.len() == WINDOW_FRAMES {
+            self.frames.pop_front();
+        }
+        self.frames.push_back(*frame);
+        if self.frames.len() == WINDOW_FRAMES {
+            let window: Vec<Mfcc> = self.frames.iter().copied().collect();
+            let p = self.model.predict(&features(&window));
+            let best = (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap_or(0);
+            self.verdict = Some(Verdict {
+                class: self.model.classes[best].clone(),
+                probability: p[best],
+                drone_probability: self.model.drone_probability(&p),
+            });
+        }
+    }
+
+    /// Forgets the window (the array restarted: its frames no longer follow on).
+    pub fn clear(&mut self) {
+        self.frames.clear();
+        self.verdict = None;
+    }
+
+    /// The verdict on the newest full window, if any.
+    pub fn verdict(&self) -> Option<&Verdict> {
+        self.verdict.as_ref()
+    }
+}
