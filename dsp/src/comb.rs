@@ -20,7 +20,9 @@
 //!    is twice as strong as `f`), `f` was a shaft line and `m·f` is the BPF. Then the sub-multiples
 //!    `f/d` (d = 2, 3): when the lines between `f`'s harmonics are that strong, `f` is a
 //!    harmonic of a lower fundamental: `f/d` if that is in the search range, else the candidate
-//!    is dropped (engines, mains hum, fans whose fundamental lies below the rotor range). The
+//!    is dropped (engines, mains hum, fans whose fundamental lies below the rotor range); it is
+//!    also dropped when the line at `f/d` lies below the search range and is at least as strong
+//!    as `f` by magnitude (a fan's fundamental; a rotor's shaft lines are 8–12 dB weaker). The
 //!    lowest line is left out of both tests: there several rotors' shaft lines add up in one
 //!    bin.
 //! 4. **Comb score.** Over harmonics `h = 1..=Config::harmonics` of the resolved fundamental:
@@ -46,8 +48,12 @@ use crate::{Config, Peak, Peaks, MAX_HARMONICS};
 
 /// Bins per block of the noise-floor estimate.
 pub const FLOOR_BLOCK: usize = 32;
-/// A harmonic line must stand this many times above the floor.
-pub const LINE_RATIO: f32 = 3.0;
+/// A harmonic line must stand this many times above the floor (2.5: noise alone reaches it in
+/// a bin with probability `exp(−π/4 · 2.5²)` ≈ 0.7 %; a comb still needs [`MIN_LINES`] such
+/// lines at half its harmonics, the quality test and [`MIN_AGE`] analyses in a row. Was 3.0;
+/// 2.5 finds the upper lines of a rotor 3–10× over a 62–70 dB background, chosen on the BPF
+/// bench's tuning seeds, BENCHMARKS.md "Session 9").
+pub const LINE_RATIO: f32 = 2.5;
 /// Whitened level at which a line's contribution to the score saturates.
 pub const LINE_CAP: f32 = 40.0;
 /// Fewest lines of a detected group (fewer only if fewer harmonics lie in the band).
@@ -278,6 +284,17 @@ impl Spectrum<'_> {
         // strong as this comb's own.
         for d in [2usize, 3] {
             let sub = bin / d as f32;
+            // A line below the search range at least as strong as this one (by magnitude):
+            // this is a harmonic of a fan's, a pump's or an engine's fundamental, its own
+            // strongest line (a rotor's shaft lines lie 8–12 dB under its blade line).
+            if sub < min_bin
+                && self
+                    .line(sub)
+                    .zip(self.line(bin))
+                    .is_some_and(|(s, c)| self.mags[s.bin] >= self.mags[c.bin])
+            {
+                return None;
+            }
             let mut ls = [0.0f32; 3 * CHECK_HARMONICS / 2 + 1];
             let mut ns = 0;
             for (j, slot) in ls.iter_mut().enumerate().skip(1) {

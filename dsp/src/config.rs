@@ -46,7 +46,8 @@ pub struct Config {
     /// score. Default 0.1.
     pub peak_relative_score: f32,
     /// Lowest detection quality of a reported rotor group, 0–1 ([`crate::Peak::quality`]).
-    /// Default 0.35.
+    /// Default 0.3 (BENCHMARKS.md "Session 9": chosen with [`crate::comb::LINE_RATIO`] 2.5 on
+    /// the BPF bench's tuning seeds for non-drone frames with a BPF ≤ 2 %).
     pub bpf_min_quality: f32,
     /// Fastest relative change of a rotor's BPF between analyses that still continues a group,
     /// per second. Default 0.1 (10 %/s: 2.6 % per 0.256 s hop, under a semitone's 6 %: a
@@ -87,7 +88,7 @@ impl Config {
             harmonics: 8,
             peak_floor_ratio: 5.0,
             peak_relative_score: 0.1,
-            bpf_min_quality: 0.35,
+            bpf_min_quality: 0.3,
             bpf_max_rate_per_s: 0.1,
             health_interval_blocks: 48,
             mfcc_interval: 1,

@@ -216,3 +216,36 @@ fn a_second_rotor_group_joins_an_established_one_at_once() {
     let alone = reported_345(&analyse(&other, 30.0, &mut rng));
     assert!(alone > joined, "outside the cluster reported at analysis {alone}, inside at {joined}");
 }
+
+/// A fan (92 Hz blade rate, its strongest line, harmonics falling 6 dB each) is no rotor: its
+/// 2nd harmonic lies in the rotor range (from 140 Hz) with a comb of its own at 184 Hz, but the
+/// stronger line below the range marks it as a harmonic. A rotor at 184 Hz whose shaft lines
+/// (92 Hz and the odd multiples) lie 10 dB under its blade lines is reported at 184 Hz.
+#[test]
+fn a_fan_below_the_rotor_range_is_no_rotor_and_a_rotor_with_shaft_lines_is() {
+    let mut rng = Rng::new(0xFA2);
+    let tone = |x: &mut [f64], f: f64, a: f64, rng: &mut Rng| {
+        let phase = 2.0 * PI * rng.uniform();
+        for (t, v) in x.iter_mut().enumerate() {
+            *v += a * (2.0 * PI * f * t as f64 / FS + phase).sin();
+        }
+    };
+    let mut fan = vec![0.0; N];
+    for h in 1..=8 {
+        tone(&mut fan, 92.0 * h as f64, 0.05 * 0.5f64.powi(h - 1), &mut rng);
+    }
+    let peaks = analyse(&fan, 20.0, &mut rng);
+    let reported = peaks[SETTLING..].iter().filter(|p| p.rotor).count();
+    println!("fan: {reported} of {} analyses with a BPF", peaks.len() - SETTLING);
+    assert_eq!(reported, 0, "{:?}", peaks.iter().map(|p| p.bpf_hz).collect::<Vec<_>>());
+
+    let mut rotor = vec![0.0; N];
+    add_group(&mut rotor, 184.0, 0.05, &mut rng);
+    for k in [1.0, 3.0, 5.0] {
+        tone(&mut rotor, 92.0 * k, 0.05 * 10f64.powf(-10.0 / 20.0) / k.sqrt(), &mut rng);
+    }
+    let peaks = analyse(&rotor, 20.0, &mut rng);
+    for p in &peaks[SETTLING..] {
+        assert!(p.rotor && (p.bpf_hz - 184.0).abs() < 0.5, "rotor reported at {}", p.bpf_hz);
+    }
+}

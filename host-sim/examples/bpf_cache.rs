@@ -1,0 +1,65 @@
+//! Diagnosis of the BPF bench (not part of the product): writes the bench's clips for a seed
+//! set so that the detector alone can be replayed on them quickly (`bpf_replay`).
+//! `cargo run --release -p host-sim --example bpf_cache -- tune|eval|SEED,SEED,… DURATION OUTDIR`:
+//! per clip `NAME.f32` (mono pressure at the array, f32 LE) and, for drone clips, `NAME.truth`
+//! (per analysis index: the rotors' true BPFs at the window's centre).
+use std::io::Write;
+
+use host_sim::bpf_bench::{
+    airframes, drone_sound, flight, in_hall, true_bpf, BACKGROUNDS_DB, FS, HALLS,
+};
+use host_sim::tonal::{scale_to_spl, Negative};
+
+fn main() -> anyhow::Result<()> {
+    let a: Vec<String> = std::env::args().skip(1).collect();
+    anyhow::ensure!(a.len() == 3, "usage: tune|eval|SEED,SEED,… DURATION OUTDIR");
+    let seeds: Vec<u64> = match a[0].as_str() {
+        "tune" => vec![1, 2],
+        "eval" => vec![101, 102, 103],
+        list => list.split(',').map(str::parse).collect::<Result<_, _>>()?,
+    };
+    let dur: f64 = a[1].parse()?;
+    let out = std::path::PathBuf::from(&a[2]);
+    std::fs::create_dir_all(&out)?;
+    let write = |name: &str, x: &[f64]| -> anyhow::Result<()> {
+        let bytes: Vec<u8> = x.iter().flat_map(|&v| (v as f32).to_le_bytes()).collect();
+        std::fs::write(out.join(name), bytes)?;
+        Ok(())
+    };
+    for p in airframes() {
+        for &seed in &seeds {
+            let distance = if seed % 2 == 1 { 3.0 } else { 5.0 };
+            let log = flight(&p, dur, seed)?;
+            let source = drone_sound(&p, &log, dur, seed);
+            for (h, hall) in HALLS.iter().enumerate() {
+                for bg in BACKGROUNDS_DB {
+                    let heard = in_hall(&source, *hall, distance, bg, seed);
+                    let name = format!("d_{}_{h}_{bg}_{seed}", p.name);
+                    write(&format!("{name}.f32"), &heard)?;
+                    let mut f = std::fs::File::create(out.join(format!("{name}.truth")))?;
+                    let n = ((dur * 8000.0) as usize - 4096) / 2048 + 1;
+                    for j in 0..n {
+                        let t = j as f64 * 0.256 + 0.256;
+                        let tr: Vec<String> = (0..p.rotor_count())
+                            .map(|r| format!("{:.4}", true_bpf(&log, r, f64::from(p.blades), t)))
+                            .collect();
+                        writeln!(f, "{}", tr.join(","))?;
+                    }
+                }
+            }
+        }
+    }
+    let fs = f64::from(FS);
+    for kind in Negative::ALL {
+        for &seed in &seeds {
+            for (h, hall) in HALLS.iter().enumerate() {
+                let len = (dur * fs) as usize;
+                let mut source = kind.signal(fs, len, 65.0, seed);
+                scale_to_spl(&mut source, 65.0 + 20.0 * 3f64.log10());
+                let heard = in_hall(&source, *hall, 3.0, 55.0, seed);
+                write(&format!("n_{}_{h}_{seed}.f32", kind.name()), &heard)?;
+            }
+        }
+    }
+    Ok(())
+}
