@@ -104,6 +104,11 @@ impl Site {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        toml::from_str(&text).with_context(|| format!("in site file {}", path.display()))
+        Self::parse(&text, path)
+    }
+
+    /// Parses the text of a site file read from `path` (named in errors).
+    pub fn parse(text: &str, path: &Path) -> anyhow::Result<Self> {
+        toml::from_str(text).with_context(|| format!("in site file {}", path.display()))
     }
 }

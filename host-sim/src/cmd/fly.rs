@@ -171,8 +171,7 @@ impl Recorded {
             std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))
         };
         let site_text = read("site.toml")?;
-        let site: host_sim::site::Site = toml::from_str(&site_text)
-            .with_context(|| format!("in site file {}", dir.join("site.toml").display()))?;
+        let site = host_sim::site::Site::parse(&site_text, &dir.join("site.toml"))?;
         let truth = host_sim::truth::Truth::parse(
             &read("truth.csv")?,
             &dir.join("truth.csv").display().to_string(),
@@ -210,6 +209,15 @@ pub(crate) fn track_recorded(
     choose_profile: bool,
 ) -> anyhow::Result<Vec<TrackRun>> {
     let site = aim_tracker::site::Site::parse(&rec.site_text, &out.join("site.toml"))?;
+    // The drone classifier `aim replay` runs by default (the bundled model); the profile
+    // follows the recognised type only when none was given, as there. Read once for every
+    // filter.
+    let model = aim_tracker::id::default_model();
+    let profiles = if choose_profile {
+        aim_tracker::id::class_profiles(None, &model.classes)?
+    } else {
+        Vec::new()
+    };
     let mut runs = Vec::new();
     for &kind in kinds {
         let config = TrackerConfig { output_period_s: period, ..TrackerConfig::default() };
@@ -225,15 +233,7 @@ pub(crate) fn track_recorded(
             .with_context(|| format!("no recording of array {tracked}"))?;
         let name = raw_path.display().to_string();
         let mut source = FrameSource::new(aim_tracker::link::open_input(&name)?);
-        // The drone classifier `aim replay` runs by default (the bundled model); the profile
-        // follows the recognised type only when none was given, as there.
-        let model = aim_tracker::id::default_model();
-        let profiles = if choose_profile {
-            aim_tracker::id::class_profiles(None, &model.classes)?
-        } else {
-            Vec::new()
-        };
-        let identifier = aim_tracker::session::Identifier::new(model, profiles)?;
+        let identifier = aim_tracker::session::Identifier::new(model.clone(), profiles.clone())?;
         let mut session = Session::new(tracker, site.clone(), IntakeConfig::default())
             .with_identifier(identifier);
         let mut fixes = Vec::new();
