@@ -100,6 +100,11 @@ impl DroneType {
              hover_rotor_hz: f64,
              spl_1m_db: f64,
              (harmonic_slope_db, shaft_line_db, broadband_db): (f64, f64, f64)| {
+                // Flight constants scaled from the Mini 2's by size (estimates, like the
+                // Mini 2's own): inertia ∝ m·arm², drag ∝ arm² (frontal area), drag torque
+                // ∝ arm (propeller radius), motor lag ∝ √arm (heavier propellers).
+                let size = arm_m / base.arm_m;
+                let inertia = mass_kg / base.mass_kg * size * size;
                 DroneProfile {
                     name: name.into(),
                     frame,
@@ -108,6 +113,11 @@ impl DroneType {
                     blades,
                     hover_rotor_hz,
                     max_rotor_hz: 2.0 * hover_rotor_hz,
+                    torque_to_thrust_m: base.torque_to_thrust_m * size,
+                    inertia_kgm2: base.inertia_kgm2.map(|i| i * inertia),
+                    drag_h: base.drag_h * size * size,
+                    drag_v: base.drag_v * size * size,
+                    motor_time_constant_s: base.motor_time_constant_s * size.sqrt(),
                     spl_1m_db,
                     harmonic_slope_db,
                     shaft_line_db,

@@ -430,6 +430,42 @@ mod tests {
         );
     }
 
+    /// Every drone type of `crate::drones` flies the square as the Mini 2 does (its flight
+    /// constants are scaled by size): within 0.15 m of the plan all along, and in mid-leg
+    /// cruise its rotors carry its weight (oracle: Σ k_v fᵢ² = m g within the drag's share).
+    #[test]
+    fn every_preset_flies_the_square() {
+        let plan = plan_square();
+        for name in DroneProfile::PRESETS {
+            let profile =
+                DroneProfile { rotor_jitter: 0.0, ..DroneProfile::preset(name).expect("preset") };
+            let n = profile.rotor_count();
+            let log = fly(
+                &profile,
+                &Airframe::nominal(n),
+                &plan,
+                0.0,
+                &ControlGains::default(),
+                Span { t0_s: 0.0, t1_s: plan.duration_s(), dt_s: 1e-3 },
+                1,
+            );
+            let worst = log
+                .samples
+                .iter()
+                .map(|s| (s.position - plan.at(s.t_s).position).norm())
+                .fold(0.0, f64::max);
+            assert!(worst < 0.15, "{name}: tracking error {worst} m");
+            let s = &log.samples[(5.0 / 1e-3) as usize];
+            let thrust: f64 = s.rotor_hz.iter().map(|f| profile.thrust_coefficient() * f * f).sum();
+            let weight = profile.mass_kg * GRAVITY_MPS2;
+            assert!(
+                (thrust / weight - 1.0).abs() < 0.05,
+                "{name}: thrust/weight {}",
+                thrust / weight
+            );
+        }
+    }
+
     /// Nose-first flight: the drone's heading follows the plan's, and during a turn the rotor
     /// speeds obey the yaw torque law I_z ψ̈ = k_h (Σ_even f² − Σ_odd f²) (odd rotors spin
     /// counter-clockwise, so their reaction torque turns the body clockwise).

@@ -133,16 +133,14 @@ impl DroneProfile {
         }
     }
 
-    /// The built-in profile called `name` (`dji-mini-2`).
+    /// The built-in profile called `name` (one of [`Self::PRESETS`]).
     pub fn preset(name: &str) -> Option<Self> {
-        match name {
-            "dji-mini-2" => Some(Self::dji_mini_2()),
-            _ => None,
-        }
+        crate::drones::DroneType::ALL.iter().find(|t| t.name() == name).map(|t| t.profile())
     }
 
-    /// Names of the built-in profiles.
-    pub const PRESETS: &'static [&'static str] = &["dji-mini-2"];
+    /// Names of the built-in profiles: the six drone types of [`crate::drones`].
+    pub const PRESETS: &'static [&'static str] =
+        &["dji-mini-2", "fpv-5in", "camera-quad-1kg", "hexacopter", "toy-70g", "consumer-400g"];
 
     /// Number of rotors.
     pub fn rotor_count(&self) -> usize {

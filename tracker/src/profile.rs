@@ -24,6 +24,19 @@ use crate::config::{check, line_of, parse_toml, read_text, ConfigError};
 /// Standard gravity, m/s².
 pub const G: f64 = 9.806_65;
 
+/// The profiles built into the tracker, by name, with their TOML text: one per drone type the
+/// bundled classifier knows (`tracker/models/drone-id-chip.json`), so a recognised type brings
+/// its profile. Each holds nominal published-style values only (mass, layout, blades, hover
+/// BPF; `k_v` from those, recalibrated on every hover).
+pub const BUNDLED: &[(&str, &str)] = &[
+    ("dji-mini-2", include_str!("../profiles/dji-mini-2.toml")),
+    ("fpv-5in", include_str!("../profiles/fpv-5in.toml")),
+    ("camera-quad-1kg", include_str!("../profiles/camera-quad-1kg.toml")),
+    ("hexacopter", include_str!("../profiles/hexacopter.toml")),
+    ("toy-70g", include_str!("../profiles/toy-70g.toml")),
+    ("consumer-400g", include_str!("../profiles/consumer-400g.toml")),
+];
+
 /// Rotor layout; it fixes the rotor count and which rotors turn alike (paper §III-B).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -192,11 +205,30 @@ impl Profile {
 
     /// The built-in DJI Mini 2 profile (the paper's drone), same as `profiles/dji-mini-2.toml`.
     pub fn dji_mini_2() -> Self {
-        Self::parse(
-            include_str!("../profiles/dji-mini-2.toml"),
-            Path::new("profiles/dji-mini-2.toml"),
-        )
-        .expect("the bundled profile is valid")
+        Self::bundled("dji-mini-2").expect("the Mini 2 profile is bundled")
+    }
+
+    /// The bundled profile called `name` (one of [`BUNDLED`]: the drone classifier's classes),
+    /// the same as `profiles/<name>.toml`; `None` for another name.
+    pub fn bundled(name: &str) -> Option<Self> {
+        let (_, text) = BUNDLED.iter().find(|(n, _)| *n == name)?;
+        let file = format!("profiles/{name}.toml");
+        Some(Self::parse(text, Path::new(&file)).expect("the bundled profiles are valid"))
+    }
+
+    /// The profile a `--profile` argument names: a TOML file if `arg` is one, else the
+    /// bundled profile of that name. The error says which it tried.
+    pub fn from_arg(arg: &Path) -> anyhow::Result<Self> {
+        if arg.is_file() {
+            return Ok(Self::load(arg)?);
+        }
+        arg.to_str().and_then(Self::bundled).ok_or_else(|| {
+            anyhow::anyhow!(
+                "profile `{}`: no such file, and no bundled profile has that name (bundled: {})",
+                arg.display(),
+                BUNDLED.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+            )
+        })
     }
 
     /// Σ max(0, −cos θᵢ) over the arm directions θᵢ for a flight nose-first between two arms
@@ -249,6 +281,20 @@ mod tests {
             let hover = prof.hover_bpf_hz();
             assert!(hover > prof.bpf_min_hz && hover < prof.bpf_max_hz, "{name}: {hover}");
         }
+        // Every bundled profile equals its file, and its window holds the hover BPF with the
+        // Mini 2's margins (× 0.6 … × 1.55 within a few per cent).
+        for (name, _) in BUNDLED {
+            let file = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("profiles/{name}.toml"));
+            let prof = Profile::bundled(name).unwrap();
+            assert_eq!(prof, Profile::load(&file).unwrap(), "{name}");
+            assert_eq!(Profile::from_arg(Path::new(name)).unwrap(), prof);
+            assert_eq!(Profile::from_arg(&file).unwrap(), prof);
+            let hover = prof.hover_bpf_hz();
+            let (lo, hi) = (prof.bpf_min_hz / hover, prof.bpf_max_hz / hover);
+            assert!((0.57..0.64).contains(&lo) && (1.5..1.6).contains(&hi), "{name}: {lo} {hi}");
+        }
+        let e = Profile::from_arg(Path::new("no-such-drone")).unwrap_err().to_string();
+        assert!(e.contains("no-such-drone") && e.contains("fpv-5in"), "{e}");
     }
 
     #[test]

@@ -12,7 +12,8 @@
 //! evaluation_seeds = [1001, 1002]    # held-out seeds the tables report; disjoint from tuning
 //! filters = ["paper", "aim"]         # [both]
 //! period_s = 0.1                     # [0.1] tracker output period
-//! profile = "../../tracker/profiles/dji-mini-2.toml"   # [the bundled DJI Mini 2 profile]
+//! profile = "../../tracker/profiles/dji-mini-2.toml"   # [none: the bundled DJI Mini 2, then
+//!                                    #  the profile of the type the classifier recognises]
 //! [airframe]                         # the population every run draws its airframe from
 //! wake_spread = 0.3                  # (keys of a scenario's [airframe]; merged over each file's)
 //!
@@ -20,6 +21,8 @@
 //! name = "square10-los"
 //! scenario = "../scenarios/square10-los.toml"
 //! # [family.airframe] overrides the suite's population for this family only
+//! # profile = "fpv-5in"              # this family's tracker profile (a file or a bundled name)
+//! # [family.drone] preset = "fpv-5in" # keys merged over the scenario's [drone] table
 //! ```
 //!
 //! Each seed replaces the scenario's `seed`, so it draws the noise, the microphones' mismatch,
@@ -93,6 +96,9 @@ struct FamilyFile {
     scenario: PathBuf,
     #[serde(default)]
     airframe: toml::Table,
+    #[serde(default)]
+    drone: toml::Table,
+    profile: Option<PathBuf>,
 }
 
 /// One scenario family of a suite.
@@ -102,8 +108,10 @@ pub struct Family {
     pub name: String,
     /// Scenario file.
     pub scenario: PathBuf,
-    /// Overrides merged over the scenario (its `[airframe]` population).
+    /// Overrides merged over the scenario (its `[airframe]` population, its `[drone]`).
     pub overrides: toml::Table,
+    /// Tracker profile for this family (a file or a bundled name), over the suite's.
+    pub profile: Option<PathBuf>,
 }
 
 /// A checked suite.
@@ -119,7 +127,8 @@ pub struct Suite {
     pub filters: Vec<FilterKind>,
     /// Tracker output period, s.
     pub period_s: f64,
-    /// Tracker profile file (None: the bundled DJI Mini 2 profile).
+    /// Tracker profile, a file or a bundled name (None: the bundled DJI Mini 2 profile, then
+    /// the one of the type the classifier recognises).
     pub profile: Option<PathBuf>,
     /// The families.
     pub families: Vec<Family>,
@@ -196,11 +205,19 @@ impl Suite {
             if !airframe.is_empty() {
                 overrides.insert("airframe".into(), toml::Value::Table(airframe));
             }
+            if !fam.drone.is_empty() {
+                overrides.insert("drone".into(), toml::Value::Table(fam.drone));
+            }
+            let profile = fam.profile.map(|p| relative_or_name(dir, p));
+            if let Some(p) = &profile {
+                Profile::from_arg(p)
+                    .with_context(|| format!("{}: family `{}`", path.display(), fam.name))?;
+            }
             let scenario = dir.join(&fam.scenario);
             // Check it now (with one seed) rather than after an hour of other runs.
             Scenario::load_with(&scenario, f.evaluation_seeds[0], &overrides)
                 .with_context(|| format!("{}: family `{}`", path.display(), fam.name))?;
-            families.push(Family { name: fam.name, scenario, overrides });
+            families.push(Family { name: fam.name, scenario, overrides, profile });
         }
         Ok(Self {
             description: f.description,
@@ -208,9 +225,20 @@ impl Suite {
             evaluation_seeds: f.evaluation_seeds,
             filters,
             period_s,
-            profile: f.profile.map(|p| dir.join(p)),
+            profile: f.profile.map(|p| relative_or_name(dir, p)),
             families,
         })
+    }
+}
+
+/// A profile path of a suite file: relative to the suite's folder when that names a file,
+/// else as written (a bundled profile's name).
+fn relative_or_name(dir: &Path, p: PathBuf) -> PathBuf {
+    let joined = dir.join(&p);
+    if joined.is_file() {
+        joined
+    } else {
+        p
     }
 }
 
@@ -374,8 +402,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .filter(|f| args.families.is_empty() || args.families.contains(&f.name))
         .collect();
-    let profile = match &suite.profile {
-        Some(p) => Profile::load(p)?,
+    let suite_profile = match &suite.profile {
+        Some(p) => Profile::from_arg(p)?,
         None => Profile::dji_mini_2(),
     };
     std::fs::create_dir_all(&args.out)
@@ -397,7 +425,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let run_dir = Path::new("runs").join(&fam.name).join(format!("seed-{seed}"));
         let dir = args.out.join(&run_dir);
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        let choose = suite.profile.is_none();
+        let choose = suite.profile.is_none() && fam.profile.is_none();
+        let profile = match &fam.profile {
+            Some(p) => Profile::from_arg(p)?,
+            None => suite_profile.clone(),
+        };
         let runs = if let Some(from) = &args.rescore {
             let recorded = Recorded::load(&from.join(&run_dir))?;
             track_recorded(&recorded, &dir, &profile, &suite.filters, suite.period_s, choose)?
@@ -507,6 +539,14 @@ scenario = "square10-los.toml"
         let missing = text.replace("wake_spread = 2.0", "").replace("square10-los", "nope");
         let e = format!("{:#}", Suite::parse(&missing, &scenarios().join("x.toml")).unwrap_err());
         assert!(e.contains("nope.toml"), "{e}");
+        // A family's drone and profile: an unknown preset or profile is named.
+        let ok = text.replace("wake_spread = 2.0", "");
+        let bad = format!("{ok}drone = {{ preset = \"blimp\" }}\n");
+        let e = format!("{:#}", Suite::parse(&bad, &scenarios().join("x.toml")).unwrap_err());
+        assert!(e.contains("family `fam`") && e.contains("blimp"), "{e}");
+        let bad = format!("{ok}profile = \"blimp\"\n");
+        let e = format!("{:#}", Suite::parse(&bad, &scenarios().join("x.toml")).unwrap_err());
+        assert!(e.contains("family `fam`") && e.contains("blimp"), "{e}");
     }
 
     #[test]
@@ -525,5 +565,17 @@ scenario = "square10-los.toml"
         assert!(default.families.len() >= 14, "{}", default.families.len());
         let ci = Suite::load(&dir.join("ci.toml")).unwrap();
         assert!(ci.families.len() <= 2 && ci.evaluation_seeds.len() <= 2);
+        // The drone-type suites: the same families and seeds, one chooses the profile by
+        // classifier, the other gives each family its type's bundled profile.
+        let auto = Suite::load(&dir.join("types.toml")).unwrap();
+        let given = Suite::load(&dir.join("types-profile.toml")).unwrap();
+        assert_eq!(auto.families.len(), 6);
+        assert_eq!(auto.evaluation_seeds, given.evaluation_seeds);
+        for (a, g) in auto.families.iter().zip(&given.families) {
+            assert_eq!((&a.name, &a.overrides, &a.profile), (&g.name, &g.overrides, &None));
+            assert_eq!(g.profile.as_deref(), Some(Path::new(&g.name)));
+            let drone = &a.overrides["drone"]["preset"];
+            assert_eq!(drone.as_str(), Some(a.name.as_str()));
+        }
     }
 }

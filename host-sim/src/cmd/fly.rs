@@ -36,8 +36,9 @@ pub struct Args {
     /// Output directory (default: `fly-<scenario name>`).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Drone profile for the tracker (TOML, see `tracker/profiles/`; default: the bundled
-    /// DJI Mini 2 profile).
+    /// Drone profile for the tracker: a TOML file (see `tracker/profiles/`) or a bundled
+    /// profile's name; default: the bundled DJI Mini 2 profile, replaced by the profile of
+    /// the type the drone classifier recognises (as `aim replay` does).
     #[arg(long)]
     profile: Option<PathBuf>,
     /// Output period of the tracker, s.
@@ -72,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("fly-{}", scenario.name)));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let profile = match &args.profile {
-        Some(p) => Profile::load(p)?,
+        Some(p) => Profile::from_arg(p)?,
         None => Profile::dji_mini_2(),
     };
 

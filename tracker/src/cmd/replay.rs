@@ -27,8 +27,10 @@ pub struct TrackOptions {
     /// Site file: the arrays' ids, positions and orientation (TOML).
     #[arg(long)]
     pub site: PathBuf,
-    /// Drone profile (TOML); default: the bundled DJI Mini 2, replaced by the profile of the
-    /// type the drone classifier recognises (see `--id-profiles`). Given, it stays.
+    /// Drone profile: a TOML file or a bundled profile's name (`dji-mini-2`, `fpv-5in`,
+    /// `camera-quad-1kg`, `hexacopter`, `toy-70g`, `consumer-400g`); default: the bundled DJI
+    /// Mini 2, replaced by the profile of the type the drone classifier recognises (see
+    /// `--id-profiles`). Given, it stays.
     #[arg(long)]
     pub profile: Option<PathBuf>,
     /// Drone classifier (`aim id train --features chip`) for the `drone` field of every fix,
@@ -40,8 +42,8 @@ pub struct TrackOptions {
     #[arg(long, conflicts_with = "id_model")]
     pub no_id: bool,
     /// Folder of profiles named after the classifier's classes (`<class>.toml`), which the
-    /// tracker takes when it recognises a class (without `--profile`); `dji-mini-2` is
-    /// bundled.
+    /// tracker takes when it recognises a class (without `--profile`); a class with no file
+    /// there takes its bundled profile.
     #[arg(long, value_name = "DIR")]
     pub id_profiles: Option<PathBuf>,
     /// Filter: `aim` (position–velocity EKF mixture) or `paper` (the paper's baseline).
@@ -86,7 +88,7 @@ impl TrackOptions {
     pub fn build(&self) -> anyhow::Result<Session> {
         let site = Site::load(&self.site)?;
         let profile = match &self.profile {
-            Some(p) => Profile::load(p)?,
+            Some(p) => Profile::from_arg(p)?,
             None => Profile::dji_mini_2(),
         };
         let period = aim_tracker::config::check_flag(

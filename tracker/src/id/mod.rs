@@ -39,8 +39,9 @@ pub fn default_model() -> model::Model {
 }
 
 /// The profiles the tracker may switch to, by class: `DIR/<class>.toml` for every class of
-/// `classes` that has one in `dir`, and the bundled DJI Mini 2 for `dji-mini-2` unless `dir`
-/// has its own. Profiles hold published or calibrated values, never the simulator's.
+/// `classes` that has one in `dir`, else the bundled profile of that name
+/// ([`crate::profile::BUNDLED`]: all six types of the bundled model). Profiles hold published
+/// or calibrated values, never the simulator's.
 pub fn class_profiles(
     dir: Option<&std::path::Path>,
     classes: &[String],
@@ -50,8 +51,8 @@ pub fn class_profiles(
         let file = dir.map(|d| d.join(format!("{c}.toml"))).filter(|p| p.is_file());
         if let Some(p) = file {
             out.push((c.clone(), crate::profile::Profile::load(&p)?));
-        } else if c == "dji-mini-2" {
-            out.push((c.clone(), crate::profile::Profile::dji_mini_2()));
+        } else if let Some(p) = crate::profile::Profile::bundled(c) {
+            out.push((c.clone(), p));
         }
     }
     Ok(out)
