@@ -34,12 +34,26 @@ position = [1.0, 0.5, 0.05]
 
 /// What `aim replay FRAMES --site SITE --filter KIND` prints on stdout.
 fn replay(frames: &std::path::Path, site: &std::path::Path, kind: FilterKind) -> String {
+    replay_with(frames, site, kind, None)
+}
+
+/// [`replay`] with `--profile NAME` when `profile` is given (the classifier then only names
+/// the drone).
+fn replay_with(
+    frames: &std::path::Path,
+    site: &std::path::Path,
+    kind: FilterKind,
+    profile: Option<&str>,
+) -> String {
     let site = Site::load(site).unwrap();
-    let tracker =
-        Tracker::new(site.clone(), Profile::dji_mini_2(), kind, TrackerConfig::default()).unwrap();
+    let start = profile.map_or_else(Profile::dji_mini_2, |p| Profile::bundled(p).unwrap());
+    let tracker = Tracker::new(site.clone(), start, kind, TrackerConfig::default()).unwrap();
     // `aim replay`'s default drone classifier: the bundled model, the profile free to follow.
     let model = aim_tracker::id::default_model();
-    let profiles = aim_tracker::id::class_profiles(None, &model.classes).unwrap();
+    let profiles = match profile {
+        Some(_) => Vec::new(),
+        None => aim_tracker::id::class_profiles(None, &model.classes).unwrap(),
+    };
     let identifier = aim_tracker::session::Identifier::new(model, profiles).unwrap();
     let mut session =
         Session::new(tracker, site, IntakeConfig::default()).with_identifier(identifier);
@@ -92,5 +106,40 @@ fn fly_fixes_equal_aim_replay_of_its_frames() {
             .collect();
         assert_eq!(rows, fixes, "{name}: track.csv");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A drone of another type than the default: `aim replay` without `--profile` recognises it,
+/// takes its profile and re-tracks the flight from its start, so from the switch on its fixes
+/// are those of `aim replay --profile <type>`, bit for bit (oracle: the run given the right
+/// profile from the start), and `host-sim fly` prints the same as `aim replay`.
+#[test]
+fn a_recognised_type_tracks_as_if_its_profile_was_given() {
+    let dir = std::env::temp_dir().join(format!("aim-fly-type-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scenario = dir.join("hexa.toml");
+    std::fs::write(&scenario, SCENARIO.replace("dji-mini-2", "hexacopter")).unwrap();
+    let out: PathBuf = dir.join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("fly")
+        .arg(&scenario)
+        .args(["--filter", "aim", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("classified as hexacopter"), "{stderr}");
+    let (frames, site) = (out.join("frames-4.aimraw"), out.join("site.toml"));
+    let flown = std::fs::read_to_string(out.join("fixes.jsonl")).unwrap();
+    let auto = replay(&frames, &site, FilterKind::Aim);
+    assert_eq!(flown, auto, "fly and replay differ");
+    let given = replay_with(&frames, &site, FilterKind::Aim, Some("hexacopter"));
+    let (auto, given): (Vec<&str>, Vec<&str>) = (auto.lines().collect(), given.lines().collect());
+    assert_eq!(auto.len(), given.len());
+    assert!(auto.len() > 80, "{} fixes", auto.len());
+    // The switch needs 6 frames for a window and 8 verdicts: about 3.6 s of audio.
+    let same_from = (0..auto.len()).rev().find(|&i| auto[i] != given[i]).map_or(0, |i| i + 1);
+    assert!(same_from <= 50, "fixes differ up to line {same_from}: {}", auto[same_from - 1]);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -45,30 +45,41 @@ pub struct Session {
     started: std::time::Instant,
     /// The drone classifier on the tracked array's `Mfcc` frames, if any.
     identifier: Option<Identifier>,
+    /// Everything the intake has handed the tracker, oldest first, while the classifier may
+    /// still change the profile (at most [`RETRACK_HISTORY`] items; `None` once it overflowed
+    /// or without a classifier that chooses profiles).
+    history: Option<Vec<Released>>,
 }
 
+/// Most intake items a session keeps to re-track the flight from its start when the
+/// classifier changes the profile: about 5 min of one array's frames (≈ 13 per second).
+pub const RETRACK_HISTORY: usize = 4096;
+
 /// The live drone classifier of a session and the automatic profile choice.
-#[derive(Debug)]
 pub struct Identifier {
     live: crate::id::chip::Live,
-    /// Profiles by class name: the tracker switches to a class's profile once it has been the
-    /// verdict [`PROFILE_SWITCH_VERDICTS`] times in a row with at least
-    /// [`PROFILE_SWITCH_PROBABILITY`]. Empty: the profile never changes (`--profile` given).
+    /// Profiles by class name: the tracker takes a class's profile once that class leads the
+    /// verdicts so far (module docs of [`Identifier::push`]). Empty: the profile never
+    /// changes (`--profile` given).
     profiles: Vec<(String, crate::profile::Profile)>,
     /// The class whose profile is in force, if one was chosen.
     chosen: Option<String>,
-    /// The newest verdict's class and how many verdicts in a row it has had.
-    streak: (String, u32),
+    /// Sum over the verdicts so far of each class's probability (model class order).
+    evidence: Vec<f64>,
+    /// Verdicts so far.
+    verdicts: u32,
     /// `Mfcc` frames of the tracked array seen (each makes a verdict once the window is full).
     frames: u64,
     /// Sample index of the newest one: an older one means the array restarted its clock.
     last_index: u64,
 }
 
-/// Verdicts in a row (one per `Mfcc` frame, 0.256 s) before the profile follows a class: 2 s.
+/// Fewest verdicts (one per `Mfcc` frame, 0.256 s) before the profile follows a class: 2 s.
 pub const PROFILE_SWITCH_VERDICTS: u32 = 8;
-/// Least probability of those verdicts.
-pub const PROFILE_SWITCH_PROBABILITY: f32 = 0.7;
+/// Least mean probability, over the verdicts so far, of the class whose profile is taken.
+pub const PROFILE_SWITCH_PROBABILITY: f64 = 0.5;
+/// How far a class's mean probability must lead the chosen class's to replace it.
+pub const PROFILE_SWITCH_MARGIN: f64 = 0.1;
 
 impl Identifier {
     /// A classifier with `model` (trained with `--features chip`) and the profiles it may
@@ -77,11 +88,13 @@ impl Identifier {
         model: crate::id::model::Model,
         profiles: Vec<(String, crate::profile::Profile)>,
     ) -> anyhow::Result<Self> {
+        let classes = model.classes.len();
         Ok(Self {
             live: crate::id::chip::Live::new(model)?,
             profiles,
             chosen: None,
-            streak: (String::new(), 0),
+            evidence: vec![0.0; classes],
+            verdicts: 0,
             frames: 0,
             last_index: 0,
         })
@@ -109,30 +122,49 @@ impl Identifier {
     }
 
     /// One `Mfcc` frame of the tracked array; returns a profile to switch to, if any.
+    ///
+    /// A drone does not change type in flight, so the choice weighs every verdict so far,
+    /// not the latest: the class with the largest mean probability over them, once there are
+    /// [`PROFILE_SWITCH_VERDICTS`] and that mean is at least [`PROFILE_SWITCH_PROBABILITY`]
+    /// (a chosen class is replaced only by one leading it by [`PROFILE_SWITCH_MARGIN`]). A
+    /// type confused with another in a third of the windows thus never takes the profile.
     fn push(
         &mut self,
         sample_index: u64,
         frame: &aim_wire::Mfcc,
     ) -> Option<crate::profile::Profile> {
         if sample_index < self.last_index {
-            // The array rebooted: its new frames do not continue the old window.
+            // The array rebooted: its new frames do not continue the old window (the drone,
+            // and so the evidence, stays).
             self.live.clear();
         }
         self.last_index = sample_index;
         self.frames += 1;
         self.live.push(frame);
         let v = self.live.verdict()?;
-        if v.class == self.streak.0 && v.probability >= PROFILE_SWITCH_PROBABILITY {
-            self.streak.1 += 1;
-        } else {
-            let n = u32::from(v.probability >= PROFILE_SWITCH_PROBABILITY);
-            self.streak = (v.class.clone(), n);
+        for (e, p) in self.evidence.iter_mut().zip(&v.probabilities) {
+            *e += f64::from(*p);
         }
-        if self.streak.1 < PROFILE_SWITCH_VERDICTS || self.chosen.as_deref() == Some(&self.streak.0)
-        {
+        self.verdicts += 1;
+        if self.verdicts < PROFILE_SWITCH_VERDICTS {
             return None;
         }
-        let (class, profile) = self.profiles.iter().find(|(c, _)| *c == self.streak.0)?;
+        let n = f64::from(self.verdicts);
+        let classes = self.live.classes();
+        let lead = (0..self.evidence.len())
+            .max_by(|&a, &b| self.evidence[a].total_cmp(&self.evidence[b]))?;
+        let lead_mean = self.evidence[lead] / n;
+        let class = &classes[lead];
+        if lead_mean < PROFILE_SWITCH_PROBABILITY || self.chosen.as_ref() == Some(class) {
+            return None;
+        }
+        if let Some(chosen) = &self.chosen {
+            let c = classes.iter().position(|x| x == chosen)?;
+            if lead_mean < self.evidence[c] / n + PROFILE_SWITCH_MARGIN {
+                return None;
+            }
+        }
+        let (class, profile) = self.profiles.iter().find(|(c, _)| c == class)?;
         self.chosen = Some(class.clone());
         Some(profile.clone())
     }
@@ -159,6 +191,7 @@ impl Session {
             latency_max_s: 0.0,
             inputs_span: None,
             identifier: None,
+            history: None,
         }
     }
 
@@ -166,6 +199,9 @@ impl Session {
     /// fix then carries a `drone` field, and the tracker takes the profile of a recognised
     /// class when the identifier has one for it.
     pub fn with_identifier(mut self, identifier: Identifier) -> Self {
+        if !identifier.profiles.is_empty() {
+            self.history = Some(Vec::new());
+        }
         self.identifier = Some(identifier);
         self
     }
@@ -234,15 +270,37 @@ impl Session {
                         id.chosen().unwrap_or("?"),
                         profile.name
                     );
-                    self.tracker.set_profile(profile);
+                    self.retrack(profile);
                 }
             }
         }
         let tracker = &mut self.tracker;
         let span = &mut self.inputs_span;
         let mut fixes = Vec::new();
-        self.intake.push(frame, &mut |r| feed(tracker, span, r, &mut fixes))?;
+        let history = &mut self.history;
+        self.intake.push(frame, &mut |r| {
+            keep(history, &r);
+            feed(tracker, span, r, &mut fixes)
+        })?;
         Ok(self.stamp(fixes))
+    }
+
+    /// The tracker takes `profile`: a new tracker with it replays everything the intake has
+    /// handed on since the start (its fixes were sent already and are dropped), so the flight
+    /// so far — the first hover's calibration above all — counts as if the profile had been
+    /// given from the start. Beyond [`RETRACK_HISTORY`] items the tracker changes profile
+    /// where it is ([`Tracker::set_profile`]).
+    fn retrack(&mut self, profile: crate::profile::Profile) {
+        let Some(history) = &self.history else {
+            self.tracker.set_profile(profile);
+            return;
+        };
+        let mut tracker = self.tracker.fresh(profile);
+        let (mut span, mut dropped) = (None, Vec::new());
+        for r in history {
+            feed(&mut tracker, &mut span, r.clone(), &mut dropped);
+        }
+        self.tracker = tracker;
     }
 
     /// The end of the stream: everything still held, then the last instants.
@@ -250,7 +308,11 @@ impl Session {
         let tracker = &mut self.tracker;
         let span = &mut self.inputs_span;
         let mut fixes = Vec::new();
-        self.intake.finish(&mut |r| feed(tracker, span, r, &mut fixes));
+        let history = &mut self.history;
+        self.intake.finish(&mut |r| {
+            keep(history, &r);
+            feed(tracker, span, r, &mut fixes)
+        });
         fixes.extend(self.tracker.flush());
         self.stamp(fixes)
     }
@@ -339,6 +401,18 @@ impl Session {
             self.latency_max_s = self.latency_max_s.max(latency);
         }
         fixes
+    }
+}
+
+/// Keeps `r` in the re-tracking history, which is dropped once it would exceed
+/// [`RETRACK_HISTORY`] items.
+fn keep(history: &mut Option<Vec<Released>>, r: &Released) {
+    if let Some(h) = history {
+        if h.len() < RETRACK_HISTORY {
+            h.push(r.clone());
+        } else {
+            *history = None;
+        }
     }
 }
 

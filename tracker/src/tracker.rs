@@ -418,6 +418,15 @@ impl Tracker {
         &self.profile
     }
 
+    /// A new tracker like this one as it was built (site, filter, configuration, audio
+    /// gating) but with `profile`: nothing of the flight so far.
+    pub fn fresh(&self, profile: Profile) -> Self {
+        let mut t = Self::new(self.site.clone(), profile, self.kind, self.config.clone())
+            .expect("this tracker's site and configuration were accepted");
+        t.gate_on_audio = self.gate_on_audio;
+        t
+    }
+
     /// Changes the drone profile (the classifier recognised another type): the hover
     /// calibration and the speed, wake and split estimators start over with it; the filter,
     /// the direction window and the motion class go on.

@@ -258,10 +258,11 @@ pub(crate) fn track_recorded(
         let tracker = session.tracker();
         plot::plot_track(&dir.join("track.png"), &fixes, &rec.truth, &rec.site)?;
         eprintln!(
-            "{}: k_v calibrated to {:.4e} N/Hz² (profile {:.4e})",
+            "{}: k_v calibrated to {:.4e} N/Hz² (profile `{}`: {:.4e})",
             filter_name(kind),
             tracker.k_v(),
-            profile.k_v
+            tracker.profile().name,
+            tracker.profile().k_v
         );
         runs.push(TrackRun { kind, summary, latency });
     }

@@ -59,6 +59,13 @@ struct TrainArgs {
     /// `aim_tracker::id::chip`: what `aim track` classifies live).
     #[arg(long, default_value = "clip", value_parser = ["clip", "chip"])]
     features: String,
+    /// With `--features chip`: the share of recordings heard through an array (one of the
+    /// shipped geometries, a plane wave from a random direction, zenith 30–90°, drawn from
+    /// `--seed`) rather than the same samples on every microphone. The chip's features come
+    /// from the mean of its microphones, which an array's aperture filters by direction; a
+    /// model trained on single-microphone recordings only misreads drones heard by an array.
+    #[arg(long, default_value_t = 0.5)]
+    array_share: f64,
 }
 
 #[derive(clap::Args)]
@@ -96,12 +103,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// The feature vectors of one recording: one (`clip`), or one per window of `Mfcc` frames
-/// (`chip`: at least one).
-fn features_of(path: &Path, ex: &Extractor, chip_frames: bool) -> anyhow::Result<Vec<Vec<f32>>> {
+/// (`chip`: at least one; heard through `arrival`'s array if given).
+fn features_of(
+    path: &Path,
+    ex: &Extractor,
+    chip_frames: bool,
+    arrival: Option<&chip::Arrival>,
+) -> anyhow::Result<Vec<Vec<f32>>> {
     if chip_frames {
         let (x, rate) = audio::read_mono(path)?;
         let frames: Vec<aim_wire::Mfcc> =
-            chip::frames_of_recording(&x, rate)?.into_iter().map(|(_, m)| m).collect();
+            chip::frames_of_arrival(&x, rate, arrival)?.into_iter().map(|(_, m)| m).collect();
         let w = chip::windows(&frames);
         if w.is_empty() {
             bail!(
@@ -117,18 +129,25 @@ fn features_of(path: &Path, ex: &Extractor, chip_frames: bool) -> anyhow::Result
     Ok(vec![clip::features(&x, ex)])
 }
 
-/// Feature vectors and labels of every clip of `classes`, labels from `index`.
+/// Feature vectors and labels of every clip of `classes`, labels from `index`; with
+/// `arrivals = Some((share, seed))`, that share of the clips heard through an array
+/// ([`chip::Arrival::draw`], seeded by `seed` and the clip's place).
 fn load(
     classes: &[dataset::Class],
     chip_frames: bool,
+    arrivals: Option<(f64, u64)>,
     index: impl Fn(&str) -> anyhow::Result<usize>,
 ) -> anyhow::Result<(Vec<Vec<f32>>, Vec<usize>)> {
     let ex = Extractor::new();
     let (mut x, mut y) = (Vec::new(), Vec::new());
-    for c in classes {
+    for (ci, c) in classes.iter().enumerate() {
         let label = index(&c.name)?;
-        for f in &c.files {
-            for v in features_of(f, &ex, chip_frames)? {
+        for (fi, f) in c.files.iter().enumerate() {
+            let arrival = arrivals.and_then(|(share, seed)| {
+                let clip = seed.wrapping_mul(1 << 20) ^ ((ci as u64) << 40) ^ fi as u64;
+                (chip::unit_hash(clip) < share).then(|| chip::Arrival::draw(clip << 8))
+            });
+            for v in features_of(f, &ex, chip_frames, arrival.as_ref())? {
                 x.push(v);
                 y.push(label);
             }
@@ -148,8 +167,13 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
     }
     let names: Vec<String> = classes.iter().map(|c| c.name.clone()).collect();
     let chip_frames = a.features == "chip";
-    let (x, y) =
-        load(&classes, chip_frames, |n| Ok(names.iter().position(|c| c == n).unwrap_or(0)))?;
+    if !(0.0..=1.0).contains(&a.array_share) {
+        bail!("--array-share must be in 0..=1, got {}", a.array_share);
+    }
+    let arrivals = (chip_frames && a.array_share > 0.0).then_some((a.array_share, a.seed));
+    let (x, y) = load(&classes, chip_frames, arrivals, |n| {
+        Ok(names.iter().position(|c| c == n).unwrap_or(0))
+    })?;
     let t = model::Training {
         epochs: a.epochs,
         hidden_units: a.hidden.max(1),
@@ -182,7 +206,7 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
     }
     let m = model::Model::load(&a.model)?;
     let classes = dataset::scan(&a.dir)?;
-    let (x, y) = load(&classes, m.reads_chip_frames(), |n| {
+    let (x, y) = load(&classes, m.reads_chip_frames(), None, |n| {
         m.classes.iter().position(|c| c == n).with_context(|| {
             format!(
                 "{}: class `{n}` is not one the model knows ({})",
@@ -306,7 +330,7 @@ fn classify(a: ClassifyArgs) -> anyhow::Result<()> {
     let mut out = std::io::stdout().lock();
     for f in &a.wav {
         // A longer recording read as chip frames: the windows' probabilities averaged.
-        let windows = features_of(f, &ex, m.reads_chip_frames())?;
+        let windows = features_of(f, &ex, m.reads_chip_frames(), None)?;
         let mut p = vec![0.0f32; m.classes.len()];
         for v in &windows {
             for (a, b) in p.iter_mut().zip(m.predict(v)) {
