@@ -66,6 +66,12 @@ pub struct Identifier {
     chosen: Option<String>,
     /// Sum over the verdicts so far of each class's probability (model class order).
     evidence: Vec<f64>,
+    /// Per class (model order), the sum over the tracked array's rotor `Peaks` frames of how
+    /// well their groups fit the class's profile's hover BPF ([`bpf_fit`]; 1 for a class
+    /// without a profile).
+    bpf_fit: Vec<f64>,
+    /// Rotor `Peaks` frames counted in `bpf_fit`.
+    bpf_frames: u32,
     /// Verdicts so far.
     verdicts: u32,
     /// `Mfcc` frames of the tracked array seen (each makes a verdict once the window is full).
@@ -74,12 +80,32 @@ pub struct Identifier {
     last_index: u64,
 }
 
-/// Fewest verdicts (one per `Mfcc` frame, 0.256 s) before the profile follows a class: 2 s.
-pub const PROFILE_SWITCH_VERDICTS: u32 = 8;
-/// Least mean probability, over the verdicts so far, of the class whose profile is taken.
+/// Fewest verdicts (one per `Mfcc` frame, 0.256 s) before the profile follows a class: 10 s.
+/// Waiting costs little (the flight is re-tracked from its start) and a choice on a few
+/// seconds of sound flips between look-alike types (tuning seeds: BENCHMARKS.md
+/// "Issue 16, session 10").
+pub const PROFILE_SWITCH_VERDICTS: u32 = 40;
+/// Least share of the evidence ([`Identifier::push`]) of the class whose profile is taken.
 pub const PROFILE_SWITCH_PROBABILITY: f64 = 0.5;
-/// How far a class's mean probability must lead the chosen class's to replace it.
-pub const PROFILE_SWITCH_MARGIN: f64 = 0.1;
+/// Spread of a drone's BPF about its profile's hover BPF in [`bpf_fit`], natural-log units
+/// (0.1: ±10 %, airframe spread and ordinary manoeuvres).
+pub const BPF_FIT_SPREAD: f64 = 0.1;
+/// Added to every class's mean BPF fit, so that a BPF the detector misses or misreads does
+/// not veto a type the sound names clearly.
+pub const BPF_FIT_FLOOR: f64 = 0.05;
+
+/// How well rotor groups at `groups_hz` fit a drone hovering at `hover_bpf_hz`: the best
+/// group's `exp(−½ (ln(f / f_hover) / BPF_FIT_SPREAD)²)`, in [0, 1].
+pub fn bpf_fit(groups_hz: &[f64], hover_bpf_hz: f64) -> f64 {
+    groups_hz
+        .iter()
+        .filter(|f| **f > 0.0)
+        .map(|f| (-0.5 * ((f / hover_bpf_hz).ln() / BPF_FIT_SPREAD).powi(2)).exp())
+        .fold(0.0, f64::max)
+}
+
+/// How far a class's share of the evidence must lead the chosen class's to replace it.
+pub const PROFILE_SWITCH_MARGIN: f64 = 0.2;
 
 impl Identifier {
     /// A classifier with `model` (trained with `--features chip`) and the profiles it may
@@ -94,6 +120,8 @@ impl Identifier {
             profiles,
             chosen: None,
             evidence: vec![0.0; classes],
+            bpf_fit: vec![0.0; classes],
+            bpf_frames: 0,
             verdicts: 0,
             frames: 0,
             last_index: 0,
@@ -121,13 +149,48 @@ impl Identifier {
         })
     }
 
+    /// One `Peaks` frame of the tracked array: with a rotor signature, how well its groups
+    /// fit each class's hover BPF goes into the choice.
+    fn push_peaks(&mut self, peaks: &aim_wire::Peaks) {
+        if peaks.detection != aim_wire::Detection::Rotor || peaks.peaks.is_empty() {
+            return;
+        }
+        let groups: Vec<f64> = peaks.peaks.iter().map(|p| f64::from(p.freq_chz) / 100.0).collect();
+        for (fit, class) in self.bpf_fit.iter_mut().zip(self.live.classes()) {
+            *fit += match self.profiles.iter().find(|(c, _)| c == class) {
+                Some((_, p)) => bpf_fit(&groups, p.hover_bpf_hz()),
+                None => 1.0,
+            };
+        }
+        self.bpf_frames += 1;
+    }
+
+    /// Each class's share of the evidence so far: its mean probability over the verdicts
+    /// times the mean fit of the rotor groups to its hover BPF, normalised over the classes.
+    fn shares(&self) -> Vec<f64> {
+        let n = f64::from(self.verdicts.max(1));
+        let m = f64::from(self.bpf_frames);
+        let w: Vec<f64> = self
+            .evidence
+            .iter()
+            .zip(&self.bpf_fit)
+            .map(|(e, f)| e / n * if m > 0.0 { BPF_FIT_FLOOR + f / m } else { 1.0 })
+            .collect();
+        let total: f64 = w.iter().sum();
+        w.iter().map(|x| if total > 0.0 { x / total } else { 0.0 }).collect()
+    }
+
     /// One `Mfcc` frame of the tracked array; returns a profile to switch to, if any.
     ///
     /// A drone does not change type in flight, so the choice weighs every verdict so far,
-    /// not the latest: the class with the largest mean probability over them, once there are
-    /// [`PROFILE_SWITCH_VERDICTS`] and that mean is at least [`PROFILE_SWITCH_PROBABILITY`]
-    /// (a chosen class is replaced only by one leading it by [`PROFILE_SWITCH_MARGIN`]). A
-    /// type confused with another in a third of the windows thus never takes the profile.
+    /// not the latest. Each class's evidence is its mean probability over the verdicts times
+    /// how well the tracked array's rotor groups fit its profile's hover BPF ([`bpf_fit`],
+    /// averaged over the rotor `Peaks` frames, plus [`BPF_FIT_FLOOR`]), as a share of all
+    /// classes'. The class with the largest share takes the profile once there are
+    /// [`PROFILE_SWITCH_VERDICTS`] verdicts and its share is at least
+    /// [`PROFILE_SWITCH_PROBABILITY`]; the class in force (at first the start profile's) is
+    /// replaced only by one leading it by [`PROFILE_SWITCH_MARGIN`]. A type confused with a
+    /// look-alike in a third of the windows thus keeps its profile.
     fn push(
         &mut self,
         sample_index: u64,
@@ -149,18 +212,17 @@ impl Identifier {
         if self.verdicts < PROFILE_SWITCH_VERDICTS {
             return None;
         }
-        let n = f64::from(self.verdicts);
+        let shares = self.shares();
         let classes = self.live.classes();
-        let lead = (0..self.evidence.len())
-            .max_by(|&a, &b| self.evidence[a].total_cmp(&self.evidence[b]))?;
-        let lead_mean = self.evidence[lead] / n;
+        let lead = (0..shares.len()).max_by(|&a, &b| shares[a].total_cmp(&shares[b]))?;
+        let lead_mean = shares[lead];
         let class = &classes[lead];
         if lead_mean < PROFILE_SWITCH_PROBABILITY || self.chosen.as_ref() == Some(class) {
             return None;
         }
         if let Some(chosen) = &self.chosen {
             let c = classes.iter().position(|x| x == chosen)?;
-            if lead_mean < self.evidence[c] / n + PROFILE_SWITCH_MARGIN {
+            if lead_mean < shares[c] + PROFILE_SWITCH_MARGIN {
                 return None;
             }
         }
@@ -198,10 +260,15 @@ impl Session {
     /// The session with a live drone classifier on the tracked array's `Mfcc` frames: every
     /// fix then carries a `drone` field, and the tracker takes the profile of a recognised
     /// class when the identifier has one for it.
-    pub fn with_identifier(mut self, identifier: Identifier) -> Self {
+    pub fn with_identifier(mut self, mut identifier: Identifier) -> Self {
         if !identifier.profiles.is_empty() {
             self.history = Some(Vec::new());
         }
+        // The class whose profile the tracker starts with counts as chosen: leaving it takes
+        // the same margin as leaving any other choice.
+        let start = self.tracker.profile();
+        identifier.chosen =
+            identifier.profiles.iter().find(|(_, p)| p == start).map(|(c, _)| c.clone());
         self.identifier = Some(identifier);
         self
     }
@@ -260,6 +327,11 @@ impl Session {
     pub fn push(&mut self, frame: &Frame) -> Result<Vec<Fix>, IntakeError> {
         let now = self.clock_s();
         self.status_lock().observe(frame, now);
+        if let (Some(id), aim_wire::Body::Peaks(p)) = (&mut self.identifier, &frame.body) {
+            if u16::from(frame.header.array_id) == self.tracker.array_id() {
+                id.push_peaks(p);
+            }
+        }
         if let (Some(id), aim_wire::Body::Mfcc(m)) = (&mut self.identifier, &frame.body) {
             if u16::from(frame.header.array_id) == self.tracker.array_id() {
                 let index = frame.header.sample_index;
@@ -439,5 +511,25 @@ fn feed(
             fixes.extend(tracker.advance(t));
         }
         Released::Until { .. } => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fit is the Gaussian in log frequency of the best group (oracle: e^−½ one spread
+    /// off, e^−2 two spreads off), 0 without groups, blind to non-positive frequencies.
+    #[test]
+    fn bpf_fit_is_a_log_gaussian_of_the_best_group() {
+        let hover = 300.0;
+        assert!((bpf_fit(&[hover], hover) - 1.0).abs() < 1e-12);
+        let one = hover * BPF_FIT_SPREAD.exp();
+        assert!((bpf_fit(&[one], hover) - (-0.5f64).exp()).abs() < 1e-12);
+        let two_below = hover / (2.0 * BPF_FIT_SPREAD).exp();
+        assert!((bpf_fit(&[two_below, one], hover) - (-0.5f64).exp()).abs() < 1e-12);
+        assert!((bpf_fit(&[two_below], hover) - (-2.0f64).exp()).abs() < 1e-12);
+        assert_eq!(bpf_fit(&[], hover), 0.0);
+        assert_eq!(bpf_fit(&[0.0, -5.0], hover), 0.0);
     }
 }
