@@ -7,7 +7,8 @@
 //! `distance_m`, in a hall: the direct sound falls as 1/r, the reverberant tail (a
 //! Freeverb-style hall of RT60 uniform in 0.3–1.5 s, [`Hall`]) has the power of a diffuse field
 //! of critical distance `r_c` uniform in 2–6 m (tail/direct power `(r / r_c)²`), the room's
-//! background ([`background`]) is uniform in `background_db`, and with probability
+//! background ([`room_background`]: the classic room noise, or coloured noise of random
+//! spectral tilt with 0–3 random bands of noise, [`RoomNoise`]) is uniform in `background_db`, and with probability
 //! `second_source_probability` a second tonal source (desk fan, pump, vacuum, machinery,
 //! vehicle or mains hum, [`Negative`]) plays at 55–70 dB. A `none` clip is one of the nine
 //! [`Negative`]s at 55–75 dB with its hall tail (direct-to-reverberant ratio uniform in
@@ -23,8 +24,9 @@ use anyhow::{bail, Context as _};
 use rand::{rngs::StdRng, Rng, SeedableRng};
 
 use crate::drones::{Draw, DroneType};
+use crate::roomnoise::RoomNoise;
 use crate::sound::spl_to_rms_pa;
-use crate::tonal::{add, background, scale_to_spl, Hall, Negative};
+use crate::tonal::{add, scale_to_spl, Hall, Negative};
 
 /// Name of the no-drone class.
 pub const NONE_CLASS: &str = "none";
@@ -63,6 +65,9 @@ pub struct Options {
     pub background_db: (f64, f64),
     /// Probability of a second tonal source in a drone clip.
     pub second_source_probability: f64,
+    /// Classes to write (names of [`class_names`]); empty: all. A class's clips are the same
+    /// whichever others are written.
+    pub only: Vec<String>,
 }
 
 impl Default for Options {
@@ -77,6 +82,7 @@ impl Default for Options {
             distance_m: (3.0, 15.0),
             background_db: (55.0, 70.0),
             second_source_probability: 0.3,
+            only: Vec::new(),
         }
     }
 }
@@ -106,6 +112,9 @@ impl Options {
         }
         if !(0.0..=1.0).contains(&self.second_source_probability) {
             bail!("--second-source must be in 0..=1");
+        }
+        if let Some(bad) = self.only.iter().find(|c| !class_names().contains(&c.as_str())) {
+            bail!("unknown class {bad}; the classes are {}", class_names().join(", "));
         }
         Ok(())
     }
@@ -162,7 +171,7 @@ pub fn drone_scene(ty: DroneType, seed: u64, fs: f64, len: usize, o: &Options) -
     let direct: Vec<f64> =
         draw.sound(fs, total, rng.random()).iter().map(|v| v / distance).collect();
     let mut x = with_hall(&direct, fs, rt60, (distance / rc).powi(2), pre);
-    add(&mut x, &background(fs, len, bg_db, rng.random()), 1.0);
+    add(&mut x, &room_background(fs, len, bg_db, rng.random()), 1.0);
     if rng.random::<f64>() < o.second_source_probability {
         let src = SECOND_SOURCES[rng.random_range(0..SECOND_SOURCES.len())];
         let spl = rng.random_range(55.0..70.0);
@@ -187,8 +196,15 @@ pub fn none_scene(seed: u64, fs: f64, len: usize, o: &Options) -> Vec<f64> {
         scale_to_spl(&mut s, spl);
         s
     };
-    add(&mut x, &background(fs, len, bg_db, rng.random()), 1.0);
+    add(&mut x, &room_background(fs, len, bg_db, rng.random()), 1.0);
     x
+}
+
+/// The room's background of a clip, drawn from `seed` alone ([`RoomNoise`]: classic room
+/// noise, or coloured noise of random tilt with random bands), at `spl_db`.
+pub fn room_background(fs: f64, len: usize, spl_db: f64, seed: u64) -> Vec<f64> {
+    let mut rng = StdRng::seed_from_u64(seed);
+    RoomNoise::draw(&mut rng).signal(fs, len, spl_db, rng.random())
 }
 
 /// Class names in order: the six drone types, then `none`.
@@ -238,6 +254,9 @@ pub fn write_dataset(dir: &Path, o: &Options) -> anyhow::Result<Vec<(String, Vec
     let len = (o.secs * fs).round() as usize;
     let mut out = Vec::new();
     for (class, name) in class_names().into_iter().enumerate() {
+        if !o.only.is_empty() && !o.only.iter().any(|c| c == name) {
+            continue;
+        }
         let folder = dir.join(name);
         std::fs::create_dir_all(&folder)
             .with_context(|| format!("cannot create {}", folder.display()))?;
@@ -298,7 +317,16 @@ mod tests {
             assert_eq!(r.spec().sample_rate, 16_000);
             assert_eq!(r.len(), 2 * 3200, "{name}");
         }
+        // One class alone: the same clip, byte for byte.
+        let dir1 = dir.with_extension("none");
+        let only = Options { only: vec![NONE_CLASS.to_string()], ..o.clone() };
+        let one = write_dataset(&dir1, &only).unwrap();
+        assert_eq!(one.len(), 1);
+        assert_eq!(std::fs::read(&one[0].1[1]).unwrap(), std::fs::read(&written[6].1[1]).unwrap());
+        std::fs::remove_dir_all(&dir1).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
+        let unknown = Options { only: vec!["blimp".into()], ..Options::default() };
+        assert!(write_dataset(&dir, &unknown).unwrap_err().to_string().contains("blimp"));
         let bad = Options { clips_per_class: 0, ..Options::default() };
         assert!(write_dataset(&dir, &bad).unwrap_err().to_string().contains("--clips"));
     }

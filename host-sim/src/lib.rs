@@ -35,6 +35,7 @@ pub mod profile;
 pub mod propagation;
 pub mod reverb;
 pub mod room;
+pub mod roomnoise;
 pub mod scenario;
 pub mod site;
 pub mod sound;

@@ -21,7 +21,7 @@ fn clip(class: &str, seed: u64, fs: u32, secs: f64) -> Vec<f32> {
 
 #[test]
 fn the_bundled_model_names_held_out_simulated_drones_from_the_chips_frames() {
-    // 2 s clips at 16 kHz, seeds 7 000 000.. (the model's training used 1000..2499).
+    // 2 s clips at 16 kHz, seeds 7 000 000.. (the model's training used 1000..3499).
     let model = default_model();
     assert!(model.reads_chip_frames());
     let (mut right, mut n) = (0, 0);

@@ -45,6 +45,9 @@ pub struct Args {
     /// Probability of a second tonal source in a drone clip.
     #[arg(long, default_value_t = 0.3)]
     second_source: f64,
+    /// Write only this class (repeatable; default all); its clips are those of the full set.
+    #[arg(long = "class")]
+    class: Vec<String>,
 }
 
 /// Writes the dataset and prints one line per class.
@@ -59,6 +62,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         distance_m: (args.min_distance, args.max_distance),
         background_db: (args.min_background, args.max_background),
         second_source_probability: args.second_source,
+        only: args.class,
     };
     for (class, files) in iddata::write_dataset(&args.out, &o)? {
         println!("{class}: {} clips in {}", files.len(), args.out.join(&class).display());
