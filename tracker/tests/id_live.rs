@@ -26,7 +26,7 @@ fn the_bundled_model_names_held_out_simulated_drones_from_the_chips_frames() {
     assert!(model.reads_chip_frames());
     let (mut right, mut n) = (0, 0);
     for (c, class) in iddata::class_names().into_iter().enumerate() {
-        for i in 0..4u64 {
+        for i in 0..10u64 {
             let x = clip(class, iddata::clip_seed(c, 7_000_000 + i), 16_000, 2.0);
             let frames: Vec<_> =
                 chip::frames_of_recording(&x, 16_000).unwrap().into_iter().map(|f| f.1).collect();
@@ -37,8 +37,10 @@ fn the_bundled_model_names_held_out_simulated_drones_from_the_chips_frames() {
             n += 1;
         }
     }
-    // The held-out figure is 90+ % (BENCHMARKS.md); 28 clips: at least 22 right.
-    assert!(right >= 22, "{right} of {n} clips named right");
+    // The held-out 7-class figure is about 93 % (BENCHMARKS.md) and these 70 clips give 60;
+    // a model broken anywhere on the way (features, wire quantisation, JSON) names about one
+    // in seven. At least 50.
+    assert!(right >= 50, "{right} of {n} clips named right");
 }
 
 /// The synthetic link of `common` with the `Mfcc` frames of `x` (48 kHz) merged in link
