@@ -52,8 +52,11 @@ pub struct Session {
 }
 
 /// Most intake items a session keeps to re-track the flight from its start when the
-/// classifier changes the profile: about 5 min of one array's frames (≈ 13 per second).
-pub const RETRACK_HISTORY: usize = 4096;
+/// classifier changes the profile. One array hands on at most ≈ 39 items per second (an
+/// `Audio` and an `Until` per frame, 14.7 frames/s, plus 9.8 inputs/s on the 10 m square), so
+/// this covers at least 14 min of one array (with N arrays about 1/N of that); a choice made
+/// later changes the profile in place ([`Tracker::set_profile`]).
+pub const RETRACK_HISTORY: usize = 32_768;
 
 /// The live drone classifier of a session and the automatic profile choice.
 pub struct Identifier {
@@ -68,7 +71,7 @@ pub struct Identifier {
     evidence: Vec<f64>,
     /// Per class (model order), the sum over the tracked array's rotor `Peaks` frames of how
     /// well their groups fit the class's profile's hover BPF ([`bpf_fit`]; 1 for a class
-    /// without a profile).
+    /// without a profile, `none` included: it never takes a profile, but its share counts).
     bpf_fit: Vec<f64>,
     /// Rotor `Peaks` frames counted in `bpf_fit`.
     bpf_frames: u32,
