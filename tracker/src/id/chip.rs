@@ -16,6 +16,7 @@
 //!   `max(0, salience − 3 dB)²` (8), the largest salience (1), the spectral flux (mean absolute
 //!   frame-to-frame change of the level-free log-mel, dB; 1) and the share of frames whose
 //!   fundamental is within 1/12 octave of the previous frame's (1).
+use super::clip::mean_sd;
 use aim_dsp::{Config, Geometry, Output, Pipeline};
 use aim_wire::{Mfcc, MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS};
 
@@ -30,18 +31,8 @@ pub const FEATURES: usize = 2 * (MFCC_COEFFS - 1) + MFCC_MEL_BANDS + (MFCC_HARMO
 /// Names of the features, in vector order (prefixed `chip_`: a model records them, and one
 /// made for the 16 kHz clip features is not mistaken for one of these).
 pub fn names() -> Vec<String> {
-    let mut v = Vec::with_capacity(FEATURES);
-    for c in 1..MFCC_COEFFS {
-        v.push(format!("chip_mfcc{c}_mean"));
-    }
-    for c in 1..MFCC_COEFFS {
-        v.push(format!("chip_mfcc{c}_sd"));
-    }
-    for b in 0..MFCC_MEL_BANDS {
-        v.push(format!("chip_mel{b}_rel_db"));
-    }
-    let h = ["log2_f0", "salience_db", "half_db", "third_db", "env2_db", "env3_db", "env4_db"];
-    let h: Vec<&str> = h.into_iter().chain(["env5_db", "env6_db"]).collect();
+    let mut v = super::clip::spectral_names("chip_", MFCC_COEFFS, MFCC_MEL_BANDS);
+    let h = super::clip::HARMONIC_NAMES;
     v.push("chip_log2_f0_median".into());
     v.push("chip_log2_f0_sd".into());
     for n in &h[1..] {
@@ -55,13 +46,6 @@ pub fn names() -> Vec<String> {
     v.push("chip_f0_continuity".into());
     debug_assert_eq!(v.len(), FEATURES);
     v
-}
-
-fn mean_sd(x: impl Iterator<Item = f32> + Clone) -> (f32, f32) {
-    let n = x.clone().count().max(1) as f32;
-    let m = x.clone().sum::<f32>() / n;
-    let var = x.map(|v| (v - m) * (v - m)).sum::<f32>() / n;
-    (m, var.sqrt())
 }
 
 /// The feature vector of a window of frames (oldest first; at least one).

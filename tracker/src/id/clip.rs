@@ -27,18 +27,8 @@ pub const FEATURES: usize =
 
 /// Names of the features, in vector order.
 pub fn names() -> Vec<String> {
-    let mut v = Vec::with_capacity(FEATURES);
-    for c in 1..MFCC_COUNT {
-        v.push(format!("mfcc{c}_mean"));
-    }
-    for c in 1..MFCC_COUNT {
-        v.push(format!("mfcc{c}_sd"));
-    }
-    for b in 0..MEL_BANDS {
-        v.push(format!("mel{b}_rel_db"));
-    }
-    let h = ["log2_f0", "salience_db", "half_db", "third_db", "env2_db", "env3_db", "env4_db"];
-    let h: Vec<&str> = h.into_iter().chain(["env5_db", "env6_db"]).collect();
+    let mut v = spectral_names("", MFCC_COUNT, MEL_BANDS);
+    let h = HARMONIC_NAMES;
     v.push("frame_log2_f0_median".into());
     v.push("frame_log2_f0_sd".into());
     for n in &h[1..] {
@@ -56,7 +46,30 @@ pub fn names() -> Vec<String> {
     v
 }
 
-fn mean_sd(x: impl Iterator<Item = f32> + Clone) -> (f32, f32) {
+/// Names of the harmonic features of a frame (`aim_dsp::features` / `idframe` order).
+pub(crate) const HARMONIC_NAMES: [&str; 9] = [
+    "log2_f0",
+    "salience_db",
+    "half_db",
+    "third_db",
+    "env2_db",
+    "env3_db",
+    "env4_db",
+    "env5_db",
+    "env6_db",
+];
+
+/// The names both feature sets start with, `prefix`ed: MFCC c1.. means, then their standard
+/// deviations (`mfcc` coefficients with c0), then the level-free mel bands.
+pub(crate) fn spectral_names(prefix: &str, mfcc: usize, mel: usize) -> Vec<String> {
+    let mut v: Vec<String> = (1..mfcc).map(|c| format!("{prefix}mfcc{c}_mean")).collect();
+    v.extend((1..mfcc).map(|c| format!("{prefix}mfcc{c}_sd")));
+    v.extend((0..mel).map(|b| format!("{prefix}mel{b}_rel_db")));
+    v
+}
+
+/// Mean and population standard deviation of `x` (0, 0 when empty).
+pub(crate) fn mean_sd(x: impl Iterator<Item = f32> + Clone) -> (f32, f32) {
     let n = x.clone().count().max(1) as f32;
     let m = x.clone().sum::<f32>() / n;
     let var = x.map(|v| (v - m) * (v - m)).sum::<f32>() / n;
