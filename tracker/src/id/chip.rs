@@ -204,9 +204,14 @@ pub fn frames_of_arrival(
     let mut pipeline = Pipeline::new(&config)
         .map_err(|e| anyhow::anyhow!("the pipeline refuses {rate_hz} Hz: {e}"))?;
     let slots = config.tdm_slots;
-    let mics: Vec<Vec<f32>> = match arrival {
-        Some(a) => a.delays_samples(rate_hz).iter().map(|&d| delayed(mono, d)).collect(),
-        None => vec![mono.to_vec(); slots],
+    // Each microphone's samples (slots beyond the array's silent); without an arrival every
+    // slot carries the recording itself.
+    let delayed_mics: Vec<Vec<f32>> = arrival.map_or_else(Vec::new, |a| {
+        a.delays_samples(rate_hz).iter().map(|&d| delayed(mono, d)).collect()
+    });
+    let mic = |i: usize| match arrival {
+        Some(_) => delayed_mics.get(i).map(Vec::as_slice),
+        None => Some(mono),
     };
     let word = |x: f32| ((x.clamp(-1.0, 1.0) * 8_388_607.0).round() as i32) << 8;
     let mut frames = Vec::new();
@@ -214,7 +219,7 @@ pub fn frames_of_arrival(
     for start in (0..mono.len()).step_by(1024) {
         words.clear();
         for n in start..(start + 1024).min(mono.len()) {
-            words.extend((0..slots).map(|i| mics.get(i).map_or(0, |m| word(m[n]))));
+            words.extend((0..slots).map(|i| mic(i).map_or(0, |m| word(m[n]))));
         }
         pipeline.push(&words, &mut |o| {
             if let Output::Mfcc(f) = o {
