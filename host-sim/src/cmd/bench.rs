@@ -406,6 +406,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => Profile::from_arg(p)?,
         None => Profile::dji_mini_2(),
     };
+    // Each family's tracker profile, read once (not once per run).
+    let profiles: Vec<Profile> = suite
+        .families
+        .iter()
+        .map(|f| f.profile.as_deref().map_or_else(|| Ok(suite_profile.clone()), Profile::from_arg))
+        .collect::<anyhow::Result<_>>()?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let jobs: Vec<(&Family, u64)> =
@@ -426,13 +432,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let dir = args.out.join(&run_dir);
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         let choose = suite.profile.is_none() && fam.profile.is_none();
-        let profile = match &fam.profile {
-            Some(p) => Profile::from_arg(p)?,
-            None => suite_profile.clone(),
-        };
+        let index =
+            suite.families.iter().position(|f| f.name == fam.name).expect("a listed family");
+        let profile = &profiles[index];
         let runs = if let Some(from) = &args.rescore {
             let recorded = Recorded::load(&from.join(&run_dir))?;
-            track_recorded(&recorded, &dir, &profile, &suite.filters, suite.period_s, choose)?
+            track_recorded(&recorded, &dir, profile, &suite.filters, suite.period_s, choose)?
         } else {
             let scenario = Scenario::load_with(&fam.scenario, seed, &fam.overrides)?;
             let (sim, links) = host_sim::eval::link::simulate_links(
@@ -441,7 +446,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &indicatif::ProgressBar::hidden(),
                 host_sim::DEFAULT_FULL_SCALE_PA,
             )?;
-            track(&sim, &links, &dir, &profile, &suite.filters, suite.period_s, choose)?
+            track(&sim, &links, &dir, profile, &suite.filters, suite.period_s, choose)?
         };
         Ok(runs
             .into_iter()
