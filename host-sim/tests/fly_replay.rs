@@ -69,21 +69,29 @@ fn replay_with(
     out
 }
 
-#[test]
-fn fly_fixes_equal_aim_replay_of_its_frames() {
-    let dir = std::env::temp_dir().join(format!("aim-fly-replay-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let scenario = dir.join("short.toml");
-    std::fs::write(&scenario, SCENARIO).unwrap();
-    let out: PathBuf = dir.join("out");
+/// Runs `host-sim fly` on `scenario` (its text) with `--filter FILTER` into `dir/out`;
+/// returns that folder and what it printed on stderr.
+fn fly(dir: &std::path::Path, scenario: &str, filter: &str) -> (PathBuf, String) {
+    std::fs::create_dir_all(dir).unwrap();
+    let file = dir.join("scenario.toml");
+    std::fs::write(&file, scenario).unwrap();
+    let out = dir.join("out");
     let run = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .arg("fly")
-        .arg(&scenario)
-        .args(["--filter", "both", "--out"])
+        .arg(&file)
+        .args(["--filter", filter, "--out"])
         .arg(&out)
         .output()
         .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert!(run.status.success(), "{stderr}");
+    (out, stderr)
+}
+
+#[test]
+fn fly_fixes_equal_aim_replay_of_its_frames() {
+    let dir = std::env::temp_dir().join(format!("aim-fly-replay-{}", std::process::id()));
+    let (out, _) = fly(&dir, SCENARIO, "both");
     let frames = out.join("frames-4.aimraw");
     for (name, kind) in [("paper", FilterKind::Paper), ("aim", FilterKind::Aim)] {
         let flown = std::fs::read_to_string(out.join(name).join("fixes.jsonl")).unwrap();
@@ -116,23 +124,11 @@ fn fly_fixes_equal_aim_replay_of_its_frames() {
 #[test]
 fn a_recognised_type_tracks_as_if_its_profile_was_given() {
     let dir = std::env::temp_dir().join(format!("aim-fly-type-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let scenario = dir.join("hexa.toml");
     // Long enough for the choice (10 s of verdicts) and a stretch of flight after it.
     let hexa = SCENARIO
         .replace("dji-mini-2", "hexacopter")
         .replace("hover_end_s = 1.0", "hover_end_s = 10.0");
-    std::fs::write(&scenario, hexa).unwrap();
-    let out: PathBuf = dir.join("out");
-    let run = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .arg("fly")
-        .arg(&scenario)
-        .args(["--filter", "aim", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let stderr = String::from_utf8_lossy(&run.stderr);
+    let (out, stderr) = fly(&dir, &hexa, "aim");
     assert!(stderr.contains("classified as hexacopter"), "{stderr}");
     let (frames, site) = (out.join("frames-4.aimraw"), out.join("site.toml"));
     let flown = std::fs::read_to_string(out.join("fixes.jsonl")).unwrap();
