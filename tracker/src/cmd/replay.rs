@@ -52,6 +52,10 @@ pub struct TrackOptions {
     /// Array to track with (default: the site's first).
     #[arg(long)]
     pub array: Option<u16>,
+    /// Only the tracked array's frames make the track (default: every array of the site
+    /// that sends frames adds its bearings; one array's own dynamics still drive it).
+    #[arg(long)]
+    pub no_fuse: bool,
     /// Output period, s.
     #[arg(long, default_value_t = 0.1)]
     pub period: f64,
@@ -100,6 +104,7 @@ impl TrackOptions {
         let config = TrackerConfig {
             output_period_s: period,
             array_id: self.array,
+            fuse_arrays: !self.no_fuse,
             ..TrackerConfig::default()
         };
         let tracker = Tracker::new(site.clone(), profile, self.filter, config)
@@ -131,7 +136,11 @@ impl TrackOptions {
 #[derive(clap::Args)]
 pub struct Args {
     /// Recording of frames (`aim record`, or any raw capture of the link); `-` for stdin.
-    frames: String,
+    /// Several recordings (one per array, each its board's link) are read as one link, the
+    /// arrays' frames interleaved by the end of their audio, as a host with one port per array
+    /// receives them; the boards' clocks are taken to have started together.
+    #[arg(required = true, num_args = 1..)]
+    frames: Vec<String>,
     #[command(flatten)]
     options: TrackOptions,
     /// Replay pace: `free` (as fast as possible), `real` (the link's pace) or a speed-up such
@@ -179,10 +188,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut session = args.options.build()?;
     let mavlink = args.options.mavlink.open(&args.options.site)?;
     let map = args.options.serve.start(&args.options.site)?;
-    let input = link::open_input(&args.frames)?;
+    let input: Box<dyn std::io::Read + Send> = match args.frames.as_slice() {
+        [one] => link::open_input(one)?,
+        many => {
+            if many.iter().any(|f| f == "-") {
+                anyhow::bail!("stdin (`-`) cannot be merged with other recordings");
+            }
+            let readers =
+                many.iter().map(|f| link::open_input(f)).collect::<anyhow::Result<_>>()?;
+            Box::new(link::Merged::new(readers))
+        }
+    };
     let mut source = FrameSource::new(Tap::new(input, map.clone(), args.pace));
     let result = track_frames(
-        &args.frames,
+        &args.frames.join(" + "),
         &mut source,
         &mut session,
         &args.options.site,

@@ -25,8 +25,10 @@ pub mod boards;
 #[cfg(feature = "zenoh")]
 pub mod bus;
 pub mod json;
+pub mod merge;
 pub mod record;
 pub mod serial;
 mod source;
 
+pub use merge::Merged;
 pub use source::{open_input, FrameSource};
