@@ -13,7 +13,7 @@ use crate::filter::{new_filter, Filter, FilterKind, Step};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
-use crate::observation::{BpfPeak, Input, Spectrum};
+use crate::observation::{Bearing, BpfPeak, Input, Spectrum};
 use crate::profile::Profile;
 use crate::site::Site;
 use crate::wake::{HoverPattern, WakeConfig, WakeSpeed, WakeSplit};
@@ -92,6 +92,10 @@ pub struct TrackerConfig {
     /// at any range learns the gain that fits its own speed, and the gain of a wrong first
     /// leg then holds the later legs at the wrong range.
     pub online_wake_gain: bool,
+    /// Bearings of the site's other arrays go to the filter with the tracked array's
+    /// ([`Step::others`]): with several arrays the range is observed by crossing rays, not
+    /// inferred from one array's dynamics. Off: the other arrays' inputs are dropped.
+    pub fuse_arrays: bool,
 }
 
 impl Default for TrackerConfig {
@@ -113,6 +117,7 @@ impl Default for TrackerConfig {
             split_memory_s: 0.5,
             yaw_split_hz: 6.0,
             online_wake_gain: false,
+            fuse_arrays: true,
         }
     }
 }
@@ -266,7 +271,14 @@ pub struct Tracker {
     diagnostics: VecDeque<Diagnostics>,
     /// Restarts of the track so far ([`Fix::resets`]).
     resets: u32,
+    /// Bearings of the other arrays not yet given to the filter (with
+    /// [`TrackerConfig::fuse_arrays`]), in arrival order.
+    others: VecDeque<Bearing>,
 }
+
+/// Most bearings of other arrays held for the filter (about 5 s of eight arrays): a stream
+/// of other arrays' frames while the tracked array is silent cannot grow memory.
+pub const OTHERS_KEPT: usize = 256;
 
 impl std::fmt::Debug for Tracker {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -333,6 +345,7 @@ impl Tracker {
             latest_input_t: f64::NEG_INFINITY,
             diagnostics: VecDeque::new(),
             resets: 0,
+            others: VecDeque::new(),
         })
     }
 
@@ -381,7 +394,18 @@ impl Tracker {
             Input::Bearing(b) => b.array_id == id,
             Input::Spectrum(s) => s.array_id == id,
         };
-        if !own || !t.is_finite() || t + 1e-9 < self.latest_input_t {
+        if !own {
+            if let (true, Input::Bearing(b)) = (self.config.fuse_arrays && t.is_finite(), input) {
+                if self.site.arrays.iter().any(|a| a.id == b.array_id) {
+                    if self.others.len() == OTHERS_KEPT {
+                        self.others.pop_front();
+                    }
+                    self.others.push_back(b);
+                }
+            }
+            return Vec::new();
+        }
+        if !t.is_finite() || t + 1e-9 < self.latest_input_t {
             return Vec::new();
         }
         let gap = t - self.latest_input_t > self.config.max_gap_s;
@@ -456,6 +480,7 @@ impl Tracker {
         self.spectra.clear();
         self.last_output = None;
         self.hover_run_s = 0.0;
+        self.others.clear();
         self.resets = self.resets.wrapping_add(1);
     }
 
@@ -704,9 +729,25 @@ impl Tracker {
             k_v: self.calibration.k_v(),
             speed_h: speed.horizontal,
         });
+        // Other arrays' bearings up to this instant, each once; those older than `stale_s`
+        // are dropped unused.
+        let mut others = Vec::new();
+        let stale = self.config.stale_s;
+        self.others.retain(|b| {
+            if b.t > t {
+                return true;
+            }
+            if t - b.t <= stale {
+                if let Some(a) = self.site.arrays.iter().find(|a| a.id == b.array_id) {
+                    others.push((a, *b));
+                }
+            }
+            false
+        });
         let step = Step {
             t,
             dt,
+            others,
             array: &self.site.arrays[self.array_index],
             doa,
             los,

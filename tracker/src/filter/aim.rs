@@ -36,6 +36,15 @@ pub struct AimConfig {
     /// a mixture that has drifted away out of the one cue that brings it back (measured: the
     /// 3σ gate made square10-nlos 6.4 m against 3.5 m without).
     pub nlos_azimuth_sigma: f64,
+    /// Azimuth noise of one raw bearing of another array (as an angle on the sky), rad.
+    pub other_azimuth_sigma: f64,
+    /// Zenith noise floor of one raw bearing of another array, rad (with
+    /// `zenith_sin_sigma / cos φ` towards grazing incidence, as the tracked array's).
+    pub other_zenith_sigma: f64,
+    /// Another array's bearing further than this many standard deviations of the innovation
+    /// from a hypothesis's prediction (a reflection, a blocked path) does not update it and
+    /// costs it `−gate²/2` in log-likelihood, as a bearing at the gate would.
+    pub other_gate: f64,
     /// White-acceleration density while moving along the class's axes, m²/s³.
     pub q_moving: f64,
     /// White-acceleration density otherwise, m²/s³.
@@ -111,6 +120,9 @@ impl Default for AimConfig {
             zenith_sigma_floor: 1.5f64.to_radians(),
             zenith_sin_sigma: 0.01,
             nlos_azimuth_sigma: 5.0f64.to_radians(),
+            other_azimuth_sigma: 2.0f64.to_radians(),
+            other_zenith_sigma: 3.0f64.to_radians(),
+            other_gate: 4.0,
             q_moving: 0.6,
             q_still: 0.02,
             q_cruise: 0.02,
@@ -416,6 +428,20 @@ impl Filter for AimFilter {
                     ll += l;
                 }
             }
+            for (array, b) in &step.others {
+                let saz = c.other_azimuth_sigma / b.zenith_rad.sin().max(0.05);
+                let szen =
+                    c.other_zenith_sigma.max(c.zenith_sin_sigma / b.zenith_rad.cos().max(0.02));
+                ll += f
+                    .update_bearing_other(
+                        array,
+                        (b.azimuth_rad, b.zenith_rad),
+                        (saz, szen),
+                        step.t - b.t,
+                        c.other_gate,
+                    )
+                    .unwrap_or(-0.5 * c.other_gate * c.other_gate);
+            }
             if let Some((az, saz)) = nlos_azimuth {
                 let l = f.update_azimuth(step.array, az, saz).unwrap_or(0.0);
                 if moving {
@@ -510,6 +536,7 @@ mod tests {
                 accelerating: false,
             };
             let step = Step {
+                others: Vec::new(),
                 t,
                 dt,
                 array: &array,
@@ -588,6 +615,7 @@ mod tests {
             .enumerate()
         {
             let step = Step {
+                others: Vec::new(),
                 t: k as f64 * 0.1,
                 dt: 0.1,
                 array: &array,

@@ -175,6 +175,15 @@ impl Ekf {
     /// The predicted bearing (azimuth, zenith without the bias, rad, array frame) and its
     /// Jacobian with respect to the position (central differences, 2×3).
     fn predicted_bearing(&self, array: &ArrayPose) -> ((f64, f64), [[f64; 3]; 2]) {
+        self.predicted_bearing_at(array, self.position())
+    }
+
+    /// [`Self::predicted_bearing`] of the position `pos` (the state's, or where it was).
+    fn predicted_bearing_at(
+        &self,
+        array: &ArrayPose,
+        pos: [f64; 3],
+    ) -> ((f64, f64), [[f64; 3]; 2]) {
         let angles = |pos: [f64; 3]| {
             let rel = [
                 pos[0] - array.position[0],
@@ -183,7 +192,6 @@ impl Ekf {
             ];
             angles_of(array.to_array(rel))
         };
-        let pos = self.position();
         let range = crate::observation::norm([
             pos[0] - array.position[0],
             pos[1] - array.position[1],
@@ -222,6 +230,44 @@ impl Ekf {
         }
         h[(1, ZENITH_BIAS)] = 1.0;
         let zen0 = zen0 + self.x[ZENITH_BIAS];
+        let r = diagonal([sigma_az * sigma_az, sigma_zen * sigma_zen]);
+        self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)
+    }
+
+    /// Bearing update from another array than the tracked one (rad, that array's frame),
+    /// measured `lag_s` before the state's time: predicted from where the constant-velocity
+    /// state was then, `x − v·lag_s`. The zenith bias state is shared by every array (all
+    /// hear the same ceiling; the arrays' different distances tell the bias from the height).
+    /// Skipped (None) when the innovation is beyond `gate` standard deviations in either
+    /// angle (a reflection, another source).
+    pub fn update_bearing_other(
+        &mut self,
+        array: &ArrayPose,
+        (azimuth, zenith): (f64, f64),
+        (sigma_az, sigma_zen): (f64, f64),
+        lag_s: f64,
+        gate: f64,
+    ) -> Option<f64> {
+        let (p, v) = (self.position(), self.velocity());
+        let then = [p[0] - v[0] * lag_s, p[1] - v[1] * lag_s, p[2] - v[2] * lag_s];
+        let ((az0, zen0), jacobian) = self.predicted_bearing_at(array, then);
+        let mut h = SMatrix::<f64, 2, STATE>::zeros();
+        for i in 0..3 {
+            h[(0, i)] = jacobian[0][i];
+            h[(1, i)] = jacobian[1][i];
+            h[(0, 3 + i)] = -lag_s * jacobian[0][i];
+            h[(1, 3 + i)] = -lag_s * jacobian[1][i];
+        }
+        h[(1, ZENITH_BIAS)] = 1.0;
+        let zen0 = zen0 + self.x[ZENITH_BIAS];
+        let pht = self.p * h.transpose();
+        let s = h * pht;
+        let out = |y: f64, var: f64, sigma: f64| y * y > gate * gate * (var + sigma * sigma);
+        if out(wrap_pi(azimuth - az0), s[(0, 0)], sigma_az)
+            || out(zenith - zen0, s[(1, 1)], sigma_zen)
+        {
+            return None;
+        }
         let r = diagonal([sigma_az * sigma_az, sigma_zen * sigma_zen]);
         self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)
     }

@@ -43,6 +43,10 @@ pub struct Step<'a> {
     pub dt: f64,
     /// The array whose bearings drive the track.
     pub array: &'a ArrayPose,
+    /// Raw bearings of the site's other arrays heard since the previous step (each given
+    /// once, at most `stale_s` old), with their arrays' poses
+    /// ([`crate::tracker::TrackerConfig::fuse_arrays`]); empty with one array.
+    pub others: Vec<(&'a ArrayPose, crate::observation::Bearing)>,
     /// The DoA window's state, if it has one (LoS or not).
     pub doa: Option<DoaState>,
     /// Line-of-sight decision (false without DoA).

@@ -418,6 +418,7 @@ mod tests {
             let pos = [-5.0 + if moving { 1.5 * (t - 2.0) } else { 0.0 }, 4.0, 2.5];
             let los = t < 8.0;
             let step = Step {
+                others: Vec::new(),
                 t,
                 dt,
                 array: &array,
