@@ -37,10 +37,29 @@ fn replay(frames: &std::path::Path, site: &std::path::Path, kind: FilterKind) ->
     replay_with(frames, site, kind, None)
 }
 
+/// What `aim replay FRAMES... --site SITE --filter KIND` prints for several recordings (read
+/// as one link by `link::Merged`).
+fn replay_merged(frames: &[PathBuf], site: &std::path::Path, kind: FilterKind) -> String {
+    let readers = frames.iter().map(|f| link::open_input(f.to_str().unwrap()).unwrap()).collect();
+    let source = FrameSource::new(link::Merged::new(readers));
+    replay_source(source, site, kind, None)
+}
+
 /// [`replay`] with `--profile NAME` when `profile` is given (the classifier then only names
 /// the drone).
 fn replay_with(
     frames: &std::path::Path,
+    site: &std::path::Path,
+    kind: FilterKind,
+    profile: Option<&str>,
+) -> String {
+    let source = FrameSource::new(link::open_input(frames.to_str().unwrap()).unwrap());
+    replay_source(source, site, kind, profile)
+}
+
+/// [`replay_with`] of any frame source.
+fn replay_source<R: std::io::Read>(
+    mut source: FrameSource<R>,
     site: &std::path::Path,
     kind: FilterKind,
     profile: Option<&str>,
@@ -57,7 +76,6 @@ fn replay_with(
     let identifier = aim_tracker::session::Identifier::new(model, profiles).unwrap();
     let mut session =
         Session::new(tracker, site, IntakeConfig::default()).with_identifier(identifier);
-    let mut source = FrameSource::new(link::open_input(frames.to_str().unwrap()).unwrap());
     let mut out = String::new();
     session
         .track_reader(&mut source, &mut |f| {
@@ -72,6 +90,12 @@ fn replay_with(
 /// Runs `host-sim fly` on `scenario` (its text) with `--filter FILTER` into `dir/out`;
 /// returns that folder and what it printed on stderr.
 fn fly(dir: &std::path::Path, scenario: &str, filter: &str) -> (PathBuf, String) {
+    let (out, _, stderr) = fly_args(dir, scenario, &["--filter", filter]);
+    (out, stderr)
+}
+
+/// `host-sim fly SCENARIO ARGS --out dir/out`: that folder, stdout and stderr.
+fn fly_args(dir: &std::path::Path, scenario: &str, args: &[&str]) -> (PathBuf, String, String) {
     std::fs::create_dir_all(dir).unwrap();
     let file = dir.join("scenario.toml");
     std::fs::write(&file, scenario).unwrap();
@@ -79,13 +103,44 @@ fn fly(dir: &std::path::Path, scenario: &str, filter: &str) -> (PathBuf, String)
     let run = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .arg("fly")
         .arg(&file)
-        .args(["--filter", filter, "--out"])
+        .args(args)
+        .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
     assert!(run.status.success(), "{stderr}");
-    (out, stderr)
+    (out, String::from_utf8_lossy(&run.stdout).into_owned(), stderr)
+}
+
+/// The mean error `fly` printed (`... aim: mean 0.85 m, ...`), m.
+fn printed_mean(stdout: &str) -> f64 {
+    let at = stdout.find("mean ").unwrap_or_else(|| panic!("no mean in {stdout}")) + 5;
+    stdout[at..].split(' ').next().unwrap().parse().unwrap()
+}
+
+/// Three arrays around a short flight: `fly` tracks every array's recording merged, as
+/// `aim replay frames-1.aimraw frames-2.aimraw frames-3.aimraw` does, bit for bit; the other
+/// arrays' bearings pin the range the first array alone has to infer (oracle: the truth;
+/// the tracked array alone on the same frames, `--no-fuse`, is worse).
+#[test]
+fn several_arrays_fly_equals_the_merged_replay_and_crossing_rays_find_the_range() {
+    let dir = std::env::temp_dir().join(format!("aim-fly-arrays-{}", std::process::id()));
+    let arrays = SCENARIO.split("[[array]]").next().unwrap().to_string()
+        + "[[array]]\nid = 1\nposition = [1.0, 0.5, 0.05]\n"
+        + "[[array]]\nid = 2\nposition = [8.0, 1.0, 0.05]\nyaw_deg = 90.0\n"
+        + "[[array]]\nid = 3\nposition = [4.0, 7.0, 0.05]\nyaw_deg = 200.0\n";
+    let (out, stdout, _) = fly_args(&dir, &arrays, &["--filter", "aim"]);
+    let fused = printed_mean(&stdout);
+    let frames: Vec<PathBuf> = (1..=3).map(|i| out.join(format!("frames-{i}.aimraw"))).collect();
+    let flown = std::fs::read_to_string(out.join("fixes.jsonl")).unwrap();
+    assert!(flown.lines().count() > 50, "{flown}");
+    assert_eq!(flown, replay_merged(&frames, &out.join("site.toml"), FilterKind::Aim));
+    let (_, stdout, _) = fly_args(&dir.join("single"), &arrays, &["--filter", "aim", "--no-fuse"]);
+    let single = printed_mean(&stdout);
+    // Measured: fused 0.11 m, the first array alone 2.74 m (seed 5).
+    assert!(fused < 0.4 && fused < 0.5 * single, "fused {fused} m, first array alone {single} m");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

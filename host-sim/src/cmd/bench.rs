@@ -14,6 +14,8 @@
 //! period_s = 0.1                     # [0.1] tracker output period
 //! profile = "../../tracker/profiles/dji-mini-2.toml"   # [none: the bundled DJI Mini 2, then
 //!                                    #  the profile of the type the classifier recognises]
+//! fuse_arrays = true                 # [true] with several arrays, all tracked together;
+//!                                    #  false: the first array's recording alone
 //! [airframe]                         # the population every run draws its airframe from
 //! wake_spread = 0.3                  # (keys of a scenario's [airframe]; merged over each file's)
 //!
@@ -49,7 +51,7 @@ use aim_tracker::profile::Profile;
 use host_sim::eval::metrics::Summary;
 use host_sim::scenario::Scenario;
 
-use super::fly::{filter_name, track, track_recorded, Recorded};
+use super::fly::{filter_name, track, track_recorded, Recorded, Tracking};
 
 /// Arguments of `host-sim bench`.
 #[derive(clap::Args)]
@@ -84,6 +86,7 @@ struct SuiteFile {
     filters: Option<Vec<String>>,
     period_s: Option<f64>,
     profile: Option<PathBuf>,
+    fuse_arrays: Option<bool>,
     #[serde(default)]
     airframe: toml::Table,
     family: Vec<FamilyFile>,
@@ -130,6 +133,9 @@ pub struct Suite {
     /// Tracker profile, a file or a bundled name (None: the bundled DJI Mini 2 profile, then
     /// the one of the type the classifier recognises).
     pub profile: Option<PathBuf>,
+    /// With several arrays, every array's recording is tracked, their bearings fused
+    /// (default); false: the first array's alone.
+    pub fuse_arrays: bool,
     /// The families.
     pub families: Vec<Family>,
 }
@@ -226,6 +232,7 @@ impl Suite {
             filters,
             period_s,
             profile: f.profile.map(|p| relative_or_name(dir, p)),
+            fuse_arrays: f.fuse_arrays.unwrap_or(true),
             families,
         })
     }
@@ -434,10 +441,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let choose = suite.profile.is_none() && fam.profile.is_none();
         let index =
             suite.families.iter().position(|f| f.name == fam.name).expect("a listed family");
-        let profile = &profiles[index];
+        let how = Tracking {
+            profile: &profiles[index],
+            kinds: &suite.filters,
+            period: suite.period_s,
+            choose_profile: choose,
+            fuse_arrays: suite.fuse_arrays,
+        };
         let runs = if let Some(from) = &args.rescore {
             let recorded = Recorded::load(&from.join(&run_dir))?;
-            track_recorded(&recorded, &dir, profile, &suite.filters, suite.period_s, choose)?
+            track_recorded(&recorded, &dir, &how)?
         } else {
             let scenario = Scenario::load_with(&fam.scenario, seed, &fam.overrides)?;
             let (sim, links) = host_sim::eval::link::simulate_links(
@@ -446,7 +459,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &indicatif::ProgressBar::hidden(),
                 host_sim::DEFAULT_FULL_SCALE_PA,
             )?;
-            track(&sim, &links, &dir, profile, &suite.filters, suite.period_s, choose)?
+            track(&sim, &links, &dir, &how)?
         };
         Ok(runs
             .into_iter()

@@ -50,6 +50,26 @@ pub struct Args {
     /// Refuse scenarios whose simulation needs more memory than this, MB (1 MB = 10⁶ bytes).
     #[arg(long, default_value_t = 4000)]
     max_memory_mb: u64,
+    /// Track from the first array's recording alone, as `aim replay frames-<id>.aimraw
+    /// --no-fuse` (default with several arrays: every array's recording, merged as one
+    /// host receives them, each array's bearings in the filter).
+    #[arg(long)]
+    no_fuse: bool,
+}
+
+/// How the recordings of a run are tracked (shared by `fly` and `bench`).
+pub(crate) struct Tracking<'a> {
+    /// Tracker profile.
+    pub profile: &'a Profile,
+    /// Filters, one track each.
+    pub kinds: &'a [FilterKind],
+    /// Output period, s.
+    pub period: f64,
+    /// The profile follows the type the bundled classifier recognises.
+    pub choose_profile: bool,
+    /// Every array's recording, merged ([`aim_tracker::link::Merged`]), and their bearings
+    /// fused ([`TrackerConfig::fuse_arrays`]); false: the tracked array's recording alone.
+    pub fuse_arrays: bool,
 }
 
 /// What one tracker run gave.
@@ -87,7 +107,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )
     .with_context(|| format!("simulating {}", args.scenario.display()))?;
     progress.finish_and_clear();
-    let runs = track(&sim, &links, &out, &profile, &kinds, args.period, args.profile.is_none())?;
+    let tracking = Tracking {
+        profile: &profile,
+        kinds: &kinds,
+        period: args.period,
+        choose_profile: args.profile.is_none(),
+        fuse_arrays: !args.no_fuse,
+    };
+    let runs = track(&sim, &links, &out, &tracking)?;
     for r in &runs {
         if let Some(line) = no_fix_line(&scenario.name, r) {
             println!("{line}");
@@ -119,15 +146,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// Everything `host-sim fly` does after simulating, shared with `host-sim bench`: writes the
 /// site and truth files and every array's frame bytes (`links`, in the simulation's array
 /// order, from [`link::simulate_links`]) into `out`, runs them through the tracker with each
-/// filter of `kinds` (fixes every `period` s) and compares with the truth.
+/// filter of `how.kinds` (fixes every `how.period` s) and compares with the truth.
 pub(crate) fn track(
     sim: &host_sim::Simulation,
     links: &[Vec<u8>],
     out: &Path,
-    profile: &Profile,
-    kinds: &[FilterKind],
-    period: f64,
-    choose_profile: bool,
+    how: &Tracking,
 ) -> anyhow::Result<Vec<TrackRun>> {
     // The tracker reads the site file the simulator writes, as `aim replay` would.
     let site_text = sim.site.to_toml()?;
@@ -147,7 +171,7 @@ pub(crate) fn track(
     }
     let recorded =
         Recorded { site_text, site: sim.site.clone(), truth: sim.truth.clone(), raw_paths };
-    track_recorded(&recorded, out, profile, kinds, period, choose_profile)
+    track_recorded(&recorded, out, how)
 }
 
 /// A run as `fly` leaves it on disk: the site file's text and content, the truth, and each
@@ -197,31 +221,35 @@ impl Recorded {
     }
 }
 
-/// Tracks a recorded run with each filter of `kinds`, exactly as `aim replay` reads it (the
-/// site file's text, the link's bytes in link order), scores the fixes against the truth and
-/// writes each filter's `track.csv`, `fixes.jsonl` and plot under `out`. With
-/// `choose_profile` the profile follows the drone type the bundled classifier recognises.
+/// Tracks a recorded run with each filter of `how.kinds`, exactly as `aim replay` reads it
+/// (the site file's text, the link's bytes in link order; with `how.fuse_arrays` and several
+/// arrays, every array's recording merged as `aim replay frames-1.aimraw frames-2.aimraw ...`
+/// does), scores the fixes against the truth and writes each filter's `track.csv`,
+/// `fixes.jsonl` and plot under `out`. With `how.choose_profile` the profile follows the drone
+/// type the bundled classifier recognises.
 pub(crate) fn track_recorded(
     rec: &Recorded,
     out: &Path,
-    profile: &Profile,
-    kinds: &[FilterKind],
-    period: f64,
-    choose_profile: bool,
+    how: &Tracking,
 ) -> anyhow::Result<Vec<TrackRun>> {
+    let (profile, period) = (how.profile, how.period);
     let site = aim_tracker::site::Site::parse(&rec.site_text, &out.join("site.toml"))?;
     // The drone classifier `aim replay` runs by default (the bundled model); the profile
     // follows the recognised type only when none was given, as there. Read once for every
     // filter.
     let model = aim_tracker::id::default_model();
-    let profiles = if choose_profile {
+    let profiles = if how.choose_profile {
         aim_tracker::id::class_profiles(None, &model.classes)?
     } else {
         Vec::new()
     };
     let mut runs = Vec::new();
-    for &kind in kinds {
-        let config = TrackerConfig { output_period_s: period, ..TrackerConfig::default() };
+    for &kind in how.kinds {
+        let config = TrackerConfig {
+            output_period_s: period,
+            fuse_arrays: how.fuse_arrays,
+            ..TrackerConfig::default()
+        };
         let tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
         let tracked = tracker.array_id();
         let array_index =
@@ -232,8 +260,21 @@ pub(crate) fn track_recorded(
             .iter()
             .find(|(id, _)| *id == tracked)
             .with_context(|| format!("no recording of array {tracked}"))?;
-        let name = raw_path.display().to_string();
-        let mut source = FrameSource::new(aim_tracker::link::open_input(&name)?);
+        let (name, input): (String, Box<dyn std::io::Read + Send>) =
+            if how.fuse_arrays && rec.raw_paths.len() > 1 {
+                let readers = rec
+                    .raw_paths
+                    .iter()
+                    .map(|(_, p)| aim_tracker::link::open_input(&p.display().to_string()))
+                    .collect::<anyhow::Result<_>>()?;
+                let name = format!("{} recordings in {}", rec.raw_paths.len(), out.display());
+                (name, Box::new(aim_tracker::link::Merged::new(readers)))
+            } else {
+                let name = raw_path.display().to_string();
+                let input = aim_tracker::link::open_input(&name)?;
+                (name, input)
+            };
+        let mut source = FrameSource::new(input);
         let identifier = aim_tracker::session::Identifier::new(model.clone(), profiles.clone())?;
         let mut session = Session::new(tracker, site.clone(), IntakeConfig::default())
             .with_identifier(identifier);
@@ -250,7 +291,7 @@ pub(crate) fn track_recorded(
         };
         let summary = metrics::evaluate(&fixes, &rec.truth, period, first, last, array_index);
         let latency = session.fix_stats();
-        let dir = if kinds.len() > 1 { out.join(filter_name(kind)) } else { out.to_path_buf() };
+        let dir = if how.kinds.len() > 1 { out.join(filter_name(kind)) } else { out.to_path_buf() };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         write_track(&dir.join("track.csv"), &fixes, &rec.truth)?;
         let jsonl: String = fixes.iter().map(|f| f.to_json() + "\n").collect();
