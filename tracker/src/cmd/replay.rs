@@ -194,9 +194,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if many.iter().any(|f| f == "-") {
                 anyhow::bail!("stdin (`-`) cannot be merged with other recordings");
             }
-            let readers =
-                many.iter().map(|f| link::open_input(f)).collect::<anyhow::Result<_>>()?;
-            Box::new(link::Merged::new(readers))
+            let readers = many
+                .iter()
+                .map(|f| Ok((f.clone(), link::open_input(f)?)))
+                .collect::<anyhow::Result<_>>()?;
+            let rate = Site::load(&args.options.site)?
+                .sample_rate_hz
+                .unwrap_or(aim_tracker::intake::DEFAULT_SAMPLE_RATE_HZ);
+            Box::new(link::Merged::new(readers, rate))
         }
     };
     let mut source = FrameSource::new(Tap::new(input, map.clone(), args.pace));

@@ -2,13 +2,19 @@
 //! receives.
 //!
 //! Each recording keeps its own order (its board's link order); between recordings, the frame
-//! whose audio ends first comes first: a board sends a `Doa`, `Peaks` or `Mfcc` frame when its
-//! span ends, so on one host the arrays' frames interleave by the end of their spans. The end
-//! is read on each array's nominal clock (sample index over the rate its `Hello` announced, or
-//! [`crate::intake::DEFAULT_SAMPLE_RATE_HZ`] before one): the boards' clocks are taken to have
-//! started together, as the simulator's do within tens of milliseconds. Frames go out
-//! re-encoded, so a reader of [`Merged`] decodes exactly the frames the recordings held; what
-//! a recording could not decode (damage) is counted in [`Merged::input_stats`].
+//! whose audio ends first comes first (ties: the lower array id): a board sends a `Doa`,
+//! `Peaks` or `Mfcc` frame when its span ends, so on one host the arrays' frames interleave by
+//! the end of their spans. The end is read on each array's nominal clock (sample index over
+//! the rate its `Hello` announced, or the rate given before one): the boards' clocks are taken
+//! to have started together, as the simulator's do within tens of milliseconds. A recording's
+//! key follows its frames' ends while they run on; a break (ahead: a silence, back: a reboot's
+//! count from 0) is followed once a second frame agrees with it, and after a reboot the keys
+//! go on from where they were; a single absurd index keeps its recording's place (the intake
+//! judges that frame). Frames go out re-encoded, so a reader of [`Merged`] decodes exactly the frames
+//! the recordings held; what a recording could not decode (damage) is counted in
+//! [`Merged::input_stats`], and at the end of the merge each recording's counts go to stderr
+//! as one JSON line (`{"kind":"recording",...}`), with a warning for a recording that gave no
+//! frame at all.
 
 use std::io::{self, Read};
 
@@ -16,35 +22,80 @@ use aim_wire::{Body, Frame, LinkStats};
 
 use super::FrameSource;
 
+/// Largest step of a recording's ordering key from one frame to the next, s.
+pub const MAX_KEY_STEP_S: f64 = 10.0;
+
 /// Several recordings as one byte stream (module docs).
 pub struct Merged<R> {
     inputs: Vec<Input<R>>,
     /// Encoded bytes of the frame being read out, and how far.
     out: Vec<u8>,
     pos: usize,
+    /// The end of the merge has been reported.
+    reported: bool,
 }
 
 struct Input<R> {
+    name: String,
     source: FrameSource<R>,
-    head: Option<Frame>,
+    /// The next frame and its ordering key, s.
+    head: Option<(Frame, f64)>,
     done: bool,
-    /// Sample rate the array's `Hello` announced, Hz.
+    /// Sample rate the array's `Hello` announced (or the one given), Hz.
     rate_hz: f64,
+    /// The key of the recording's last frame, s.
+    key_s: f64,
+    /// Added to a frame's end to make its key (moves when a board's count went back), s.
+    offset_s: f64,
+    /// The end (with `offset_s`) of a frame that broke the recording's continuity, until the
+    /// next frame confirms the break or not, s.
+    candidate_s: Option<f64>,
+}
+
+impl<R> Input<R> {
+    /// The ordering key of a frame ending at `end_s` on the array's clock (module docs): the
+    /// end itself while the recording runs on (within [`MAX_KEY_STEP_S`]); a break (a jump
+    /// ahead: a silence; back: a reboot) counts once a second frame agrees with it, and a
+    /// frame alone keeps the last key. After a confirmed jump back the keys go on from the
+    /// last one (the host's time ran on while the board restarted its count).
+    fn key(&mut self, end_s: f64) -> f64 {
+        let e = end_s + self.offset_s;
+        if e >= self.key_s && e <= self.key_s + MAX_KEY_STEP_S {
+            self.candidate_s = None;
+            self.key_s = e;
+            return e;
+        }
+        match self.candidate_s.take() {
+            Some(c) if (e - c).abs() <= MAX_KEY_STEP_S => {
+                if c < self.key_s {
+                    self.offset_s += self.key_s - c;
+                }
+                self.key_s = end_s + self.offset_s;
+            }
+            _ => self.candidate_s = Some(e),
+        }
+        self.key_s
+    }
 }
 
 impl<R: Read> Merged<R> {
-    /// The merge of `readers` (one recording each).
-    pub fn new(readers: Vec<R>) -> Self {
+    /// The merge of `readers` (a name for messages and one recording each); `rate_hz` reads
+    /// a recording's sample indices until its `Hello` says otherwise (the site file's rate).
+    pub fn new(readers: Vec<(String, R)>, rate_hz: u32) -> Self {
         let inputs = readers
             .into_iter()
-            .map(|r| Input {
+            .map(|(name, r)| Input {
+                name,
                 source: FrameSource::new(r),
                 head: None,
                 done: false,
-                rate_hz: f64::from(crate::intake::DEFAULT_SAMPLE_RATE_HZ),
+                rate_hz: f64::from(rate_hz.max(1)),
+                key_s: 0.0,
+                offset_s: 0.0,
+                candidate_s: None,
             })
             .collect();
-        Self { inputs, out: Vec::new(), pos: 0 }
+        Self { inputs, out: Vec::new(), pos: 0, reported: false }
     }
 
     /// Each recording's link statistics so far (damaged frames are counted there; the merged
@@ -58,8 +109,18 @@ impl<R: Read> Merged<R> {
         for input in &mut self.inputs {
             if input.head.is_none() && !input.done {
                 match input.source.next() {
-                    Some(Ok(f)) => input.head = Some(f),
-                    Some(Err(e)) => return Err(e),
+                    Some(Ok(f)) => {
+                        if let Body::Hello(h) = &f.body {
+                            if h.sample_rate_hz > 0 {
+                                input.rate_hz = f64::from(h.sample_rate_hz);
+                            }
+                        }
+                        let key = input.key(end_s(&f, input.rate_hz));
+                        input.head = Some((f, key));
+                    }
+                    Some(Err(e)) => {
+                        return Err(io::Error::new(e.kind(), format!("{}: {e}", input.name)))
+                    }
                     None => input.done = true,
                 }
             }
@@ -68,17 +129,33 @@ impl<R: Read> Merged<R> {
             .inputs
             .iter()
             .enumerate()
-            .filter_map(|(i, input)| input.head.as_ref().map(|f| (i, end_s(f, input.rate_hz))))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(i, _)| i);
-        let Some(i) = first else { return Ok(None) };
-        let frame = self.inputs[i].head.take();
-        if let Some(Body::Hello(h)) = frame.as_ref().map(|f| &f.body) {
-            if h.sample_rate_hz > 0 {
-                self.inputs[i].rate_hz = f64::from(h.sample_rate_hz);
+            .filter_map(|(i, input)| {
+                input.head.as_ref().map(|(f, key)| (i, *key, f.header.array_id))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.2.cmp(&b.2)))
+            .map(|(i, _, _)| i);
+        let Some(i) = first else {
+            self.report();
+            return Ok(None);
+        };
+        Ok(self.inputs[i].head.take().map(|(f, _)| f))
+    }
+
+    /// Each recording's counts on stderr, once, at the end of the merge.
+    fn report(&mut self) {
+        if std::mem::replace(&mut self.reported, true) {
+            return;
+        }
+        for input in &self.inputs {
+            let s = input.source.stats();
+            let mut line = super::json::stats(s);
+            line["kind"] = "recording".into();
+            line["file"] = input.name.clone().into();
+            eprintln!("{line}");
+            if s.frames == 0 {
+                eprintln!("warning: {}: no frame decoded (is it an AIM recording?)", input.name);
             }
         }
-        Ok(frame)
     }
 }
 
@@ -142,7 +219,8 @@ mod tests {
         let second = bytes(&b[..1]).len() + 8;
         bytes_b[second] ^= 0x55;
         let bytes_a = bytes(&a);
-        let merged = Merged::new(vec![&bytes_a[..], &bytes_b[..]]);
+        let merged =
+            Merged::new(vec![("a".into(), &bytes_a[..]), ("b".into(), &bytes_b[..])], 48_000);
         let mut source = FrameSource::new(merged);
         let got: Vec<(u8, u16)> = source
             .by_ref()
@@ -155,5 +233,55 @@ mod tests {
         assert_eq!(inputs[0].frames, 4);
         assert_eq!(inputs[1].frames, 3);
         assert_eq!(inputs[1].crc_errors + inputs[1].framing_errors + inputs[1].malformed, 1);
+    }
+
+    fn order(inputs: Vec<(&str, Vec<u8>)>) -> Vec<(u8, u16)> {
+        let readers = inputs.iter().map(|(n, b)| (n.to_string(), &b[..])).collect();
+        FrameSource::new(Merged::new(readers, 48_000))
+            .map(|f| f.unwrap())
+            .map(|f| (f.header.array_id, f.header.seq))
+            .collect()
+    }
+
+    /// Frames ending together go out by array id, whatever the order of the recordings.
+    #[test]
+    fn ties_go_by_array_id_not_by_the_order_of_the_files() {
+        let a: Vec<Frame> = (0..3).map(|k| doa(1, k, 8192 * u64::from(k))).collect();
+        let b: Vec<Frame> = (0..3).map(|k| doa(2, k, 8192 * u64::from(k))).collect();
+        let want = [(1, 0), (2, 0), (1, 1), (2, 1), (1, 2), (2, 2)];
+        assert_eq!(order(vec![("a", bytes(&a)), ("b", bytes(&b))]), want);
+        assert_eq!(order(vec![("b", bytes(&b)), ("a", bytes(&a))]), want);
+    }
+
+    /// A board that reboots (its index back to 0) or one absurd index keeps its recording's
+    /// place in the merge instead of jumping ahead of or behind the other arrays.
+    #[test]
+    fn a_reboot_or_an_absurd_index_keeps_its_place() {
+        let mut a: Vec<Frame> = (0..6).map(|k| doa(1, k, 8192 * u64::from(k))).collect();
+        a[2].header.sample_index = u64::MAX / 4; // absurd
+        a[4].header.sample_index = 0; // rebooted...
+        a[5].header.sample_index = 8192; // ...and counting again
+        let b: Vec<Frame> = (0..6).map(|k| doa(2, k, 4096 + 8192 * u64::from(k))).collect();
+        let got = order(vec![("a", bytes(&a)), ("b", bytes(&b))]);
+        let pos = |f: (u8, u16)| got.iter().position(|&g| g == f).unwrap();
+        // Array 1's frames 2..=5 stay before array 2's frames 3..=5 (keys 24576 + 8192·0..).
+        assert!(pos((1, 2)) < pos((2, 2)), "{got:?}");
+        assert!(pos((1, 5)) < pos((2, 5)), "{got:?}");
+        assert_eq!(got.len(), 12);
+    }
+
+    /// A board silent for a while (its link down) comes back later in the merge, not at once:
+    /// after the first frame of the break, its frames wait for the other arrays' of the
+    /// same time.
+    #[test]
+    fn a_silent_board_comes_back_in_its_time() {
+        let mut a: Vec<Frame> = (0..4).map(|k| doa(1, k, 8192 * u64::from(k))).collect();
+        a.extend((4..8).map(|k| doa(1, k, 30 * 48_000 + 8192 * u64::from(k))));
+        let b: Vec<Frame> = (0..200).map(|k| doa(2, k, 8192 * u64::from(k))).collect();
+        let got = order(vec![("a", bytes(&a)), ("b", bytes(&b))]);
+        let pos = |f: (u8, u16)| got.iter().position(|&g| g == f).unwrap();
+        // b's frame k ends at (k + 1)·8192 samples: 30 s is after its frame 175.
+        assert!(pos((1, 6)) > pos((2, 175)), "{got:?}");
+        assert!(pos((1, 3)) < pos((2, 4)), "{got:?}");
     }
 }
