@@ -96,6 +96,11 @@ pub struct TrackerConfig {
     /// ([`Step::others`]): with several arrays the range is observed by crossing rays, not
     /// inferred from one array's dynamics. Off: the other arrays' inputs are dropped.
     pub fuse_arrays: bool,
+    /// With `fuse_arrays`: once the tracked array has sent nothing for this long while
+    /// another array sends bearings, that array takes over the track (its bearings, spectra
+    /// and motion class from then on; the filter's state and the hover calibration go on), s.
+    /// Less than `max_gap_s`, so the track does not restart.
+    pub failover_s: f64,
 }
 
 impl Default for TrackerConfig {
@@ -118,6 +123,7 @@ impl Default for TrackerConfig {
             yaw_split_hz: 6.0,
             online_wake_gain: false,
             fuse_arrays: true,
+            failover_s: 1.0,
         }
     }
 }
@@ -271,9 +277,22 @@ pub struct Tracker {
     diagnostics: VecDeque<Diagnostics>,
     /// Restarts of the track so far ([`Fix::resets`]).
     resets: u32,
+    /// Times another array took over the track.
+    takeovers: u32,
+    /// Audio spans of the other arrays (id, from, to; s), recent ones, for a take-over.
+    other_audio: VecDeque<(u16, f64, f64)>,
     /// Bearings of the other arrays not yet given to the filter (with
     /// [`TrackerConfig::fuse_arrays`]), in arrival order.
     others: VecDeque<Bearing>,
+}
+
+/// Adds `[from, to]` to a list of spans in time order, joining it with the last one when
+/// they overlap.
+fn merge_span(spans: &mut VecDeque<(f64, f64)>, from: f64, to: f64) {
+    match spans.back_mut() {
+        Some(last) if from <= last.1 && to >= last.0 => *last = (last.0.min(from), last.1.max(to)),
+        _ => spans.push_back((from, to)),
+    }
 }
 
 /// Most bearings of other arrays held for the filter (about 5 s of eight arrays): a stream
@@ -346,6 +365,8 @@ impl Tracker {
             diagnostics: VecDeque::new(),
             resets: 0,
             others: VecDeque::new(),
+            takeovers: 0,
+            other_audio: VecDeque::new(),
         })
     }
 
@@ -368,25 +389,33 @@ impl Tracker {
     /// Says that `array_id` sent audio over `[from_s, to_s]`: with [`Self::gate_on_audio`],
     /// output instants get a fix only where the tracked array sent audio.
     pub fn add_audio(&mut self, array_id: u16, from_s: f64, to_s: f64) {
-        if array_id != self.array_id() || !(from_s.is_finite() && to_s.is_finite()) {
+        if !(from_s.is_finite() && to_s.is_finite()) {
             return;
-        }
-        match self.audio.back_mut() {
-            Some(last) if from_s <= last.1 && to_s >= last.0 => {
-                *last = (last.0.min(from_s), last.1.max(to_s));
-            }
-            _ => self.audio.push_back((from_s, to_s)),
         }
         // Spans older than every instant still to come are no longer needed.
         let keep_from = self.last_output.unwrap_or(f64::NEG_INFINITY) - 1.0;
+        if array_id != self.array_id() {
+            // Another array's, kept for a take-over ([`TrackerConfig::failover_s`]).
+            if self.config.fuse_arrays && self.site.arrays.iter().any(|a| a.id == array_id) {
+                if self.other_audio.len() == OTHERS_KEPT {
+                    self.other_audio.pop_front();
+                }
+                self.other_audio.push_back((array_id, from_s, to_s));
+                self.other_audio.retain(|a| a.2 >= keep_from);
+            }
+            return;
+        }
+        merge_span(&mut self.audio, from_s, to_s);
         while self.audio.len() > 1 && self.audio.front().is_some_and(|a| a.1 < keep_from) {
             self.audio.pop_front();
         }
     }
 
-    /// Feeds one input of the tracked array (in time order; inputs older than the newest and
-    /// other arrays' inputs are dropped) and returns the fixes of every output instant before
-    /// it.
+    /// Feeds one input (of the tracked array: in time order, older ones dropped) and returns
+    /// the fixes of every output instant before it. With [`TrackerConfig::fuse_arrays`] the
+    /// other arrays' bearings are kept for the filter ([`OTHERS_KEPT`] at most) and, once the
+    /// tracked array has been silent for [`TrackerConfig::failover_s`], the first other array
+    /// heard takes over the track; otherwise other arrays' inputs are dropped.
     pub fn push(&mut self, input: Input) -> Vec<Fix> {
         let t = input.t();
         let id = self.array_id();
@@ -394,6 +423,15 @@ impl Tracker {
             Input::Bearing(b) => b.array_id == id,
             Input::Spectrum(s) => s.array_id == id,
         };
+        if !own && self.config.fuse_arrays && t.is_finite() {
+            if let Input::Bearing(b) = &input {
+                let silent = t - self.latest_input_t > self.config.failover_s;
+                if silent && self.latest_input_t.is_finite() {
+                    self.take_over(b.array_id);
+                }
+            }
+        }
+        let own = own || matches!(&input, Input::Bearing(b) if b.array_id == self.array_id());
         if !own {
             if let (true, Input::Bearing(b)) = (self.config.fuse_arrays && t.is_finite(), input) {
                 if self.site.arrays.iter().any(|a| a.id == b.array_id) {
@@ -461,6 +499,39 @@ impl Tracker {
         self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
         self.split = WakeSplit::new(WakeConfig::split(), self.profile.wake_split_per_mps());
         self.split_online = Self::online_split(&self.profile, &self.config);
+    }
+
+    /// `array_id` takes over the track from the tracked array, which has gone silent (a dead
+    /// link, a reboot): its direction window, motion class and spectra start afresh; the
+    /// filter (a world-frame state), the hover calibration and pattern, and the track go on.
+    fn take_over(&mut self, array_id: u16) {
+        let Some(index) = self.site.arrays.iter().position(|a| a.id == array_id) else {
+            return;
+        };
+        let c = &self.config;
+        self.array_index = index;
+        self.window = DoaWindow::new(c.doa.clone());
+        self.classifier = MotionClassifier::new(c.motion.clone());
+        self.speed = SpeedIntegrator::new(&self.profile);
+        self.wake.iter_mut().for_each(WakeSpeed::reset);
+        self.split.iter_mut().for_each(WakeSplit::reset);
+        self.split_online.iter_mut().for_each(WakeSplit::reset);
+        self.centre = FrameCentre::default();
+        self.spectra.clear();
+        // The new array's audio so far counts as heard.
+        self.audio.clear();
+        for &(_, from, to) in self.other_audio.iter().filter(|a| a.0 == array_id) {
+            merge_span(&mut self.audio, from, to);
+        }
+        self.other_audio.retain(|a| a.0 != array_id);
+        self.others.retain(|b| b.array_id != array_id);
+        self.hover_run_s = 0.0;
+        self.takeovers = self.takeovers.wrapping_add(1);
+    }
+
+    /// How many times another array took over the track ([`TrackerConfig::failover_s`]).
+    pub fn takeovers(&self) -> u32 {
+        self.takeovers
     }
 
     /// Forgets the flight after a silence: everything but the hover calibration.

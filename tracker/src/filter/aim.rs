@@ -41,10 +41,12 @@ pub struct AimConfig {
     /// Zenith noise floor of one raw bearing of another array, rad (with
     /// `zenith_sin_sigma / cos φ` towards grazing incidence, as the tracked array's).
     pub other_zenith_sigma: f64,
-    /// Another array's bearing further than this many standard deviations of the innovation
-    /// from a hypothesis's prediction (a reflection, a blocked path) does not update it and
-    /// costs it `−gate²/2` in log-likelihood, as a bearing at the gate would.
+    /// Another array's bearing whose Mahalanobis distance from a hypothesis's prediction is
+    /// beyond this (a reflection, a blocked path) does not update it.
     pub other_gate: f64,
+    /// Probability that another array's bearing is an outlier (uniform over the directions)
+    /// in the hypotheses' likelihood ([`crate::filter::ekf::Ekf::update_bearing_other`]).
+    pub other_outlier_probability: f64,
     /// White-acceleration density while moving along the class's axes, m²/s³.
     pub q_moving: f64,
     /// White-acceleration density otherwise, m²/s³.
@@ -121,8 +123,9 @@ impl Default for AimConfig {
             zenith_sin_sigma: 0.01,
             nlos_azimuth_sigma: 5.0f64.to_radians(),
             other_azimuth_sigma: 2.0f64.to_radians(),
-            other_zenith_sigma: 3.0f64.to_radians(),
+            other_zenith_sigma: 5.0f64.to_radians(),
             other_gate: 4.0,
+            other_outlier_probability: 0.05,
             q_moving: 0.6,
             q_still: 0.02,
             q_cruise: 0.02,
@@ -438,9 +441,9 @@ impl Filter for AimFilter {
                         (b.azimuth_rad, b.zenith_rad),
                         (saz, szen),
                         step.t - b.t,
-                        c.other_gate,
+                        (c.other_gate, c.other_outlier_probability),
                     )
-                    .unwrap_or(-0.5 * c.other_gate * c.other_gate);
+                    .unwrap_or(0.0);
             }
             if let Some((az, saz)) = nlos_azimuth {
                 let l = f.update_azimuth(step.array, az, saz).unwrap_or(0.0);

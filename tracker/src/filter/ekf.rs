@@ -238,15 +238,18 @@ impl Ekf {
     /// measured `lag_s` before the state's time: predicted from where the constant-velocity
     /// state was then, `x − v·lag_s`. The zenith bias state is shared by every array (all
     /// hear the same ceiling; the arrays' different distances tell the bias from the height).
-    /// Skipped (None) when the innovation is beyond `gate` standard deviations in either
-    /// angle (a reflection, another source).
+    /// Returns the bearing's log-likelihood under a Gaussian with outliers: with probability
+    /// `outlier` a bearing is a reflection or another source, uniform over the directions, so
+    /// one far off costs every hypothesis the same and a diffuse hypothesis gains nothing.
+    /// A bearing whose Mahalanobis distance is beyond `gate` updates nothing; None (no update)
+    /// if the innovation covariance is singular.
     pub fn update_bearing_other(
         &mut self,
         array: &ArrayPose,
         (azimuth, zenith): (f64, f64),
         (sigma_az, sigma_zen): (f64, f64),
         lag_s: f64,
-        gate: f64,
+        (gate, outlier): (f64, f64),
     ) -> Option<f64> {
         let (p, v) = (self.position(), self.velocity());
         let then = [p[0] - v[0] * lag_s, p[1] - v[1] * lag_s, p[2] - v[2] * lag_s];
@@ -260,16 +263,23 @@ impl Ekf {
         }
         h[(1, ZENITH_BIAS)] = 1.0;
         let zen0 = zen0 + self.x[ZENITH_BIAS];
-        let pht = self.p * h.transpose();
-        let s = h * pht;
-        let out = |y: f64, var: f64, sigma: f64| y * y > gate * gate * (var + sigma * sigma);
-        if out(wrap_pi(azimuth - az0), s[(0, 0)], sigma_az)
-            || out(zenith - zen0, s[(1, 1)], sigma_zen)
-        {
+        let r = diagonal([sigma_az * sigma_az, sigma_zen * sigma_zen]);
+        let s = symmetrized(&(h * self.p * h.transpose() + r));
+        let y = SVector::<f64, 2>::new(wrap_pi(azimuth - az0), zenith - zen0);
+        let maha = (y.transpose() * s.try_inverse()? * y)[(0, 0)];
+        let det = s.determinant();
+        if det <= 0.0 {
             return None;
         }
-        let r = diagonal([sigma_az * sigma_az, sigma_zen * sigma_zen]);
-        self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)
+        // Density of the bearing: Gaussian with probability 1 − ε, uniform over the sphere of
+        // directions (2π of azimuth × π of zenith) with probability ε.
+        let gaussian = (-0.5 * maha).exp() / (std::f64::consts::TAU * det.sqrt());
+        let uniform = 1.0 / (std::f64::consts::TAU * std::f64::consts::PI);
+        let ll = ((1.0 - outlier) * gaussian + outlier * uniform).ln();
+        if maha <= gate * gate {
+            self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)?;
+        }
+        Some(ll)
     }
 
     /// Azimuth-only update (rad, array frame, standard deviation `sigma`).
@@ -431,6 +441,37 @@ mod tests {
         let after_az = f.x[1].atan2(f.x[0]);
         assert!((after_az - az).abs() < 0.5f64.to_radians(), "{}", after_az.to_degrees());
         assert!((range(&f) - before).abs() < 0.1, "{before} → {}", range(&f));
+    }
+
+    /// Another array's bearing heard `lag` ago is predicted from where the state was then
+    /// (oracle: the exact bearing of `x − v·lag` leaves the state where it is, the same
+    /// bearing taken as current pulls it), and one far off the prediction updates nothing and
+    /// scores the outlier floor.
+    #[test]
+    fn another_arrays_bearing_is_predicted_where_the_drone_was_and_gated() {
+        let array = ArrayPose::new(2, [10.0, 0.0, 0.0], 0.3, 0.0, 0.0);
+        let start = [5.0, 4.0, 2.0, 1.5, 0.0, 0.0, 0.0, 0.0, 0.01];
+        let p = diagonal([1.0, 1.0, 1.0, 0.1, 0.1, 0.1, 1e-6, 1e-6, 1e-6]);
+        let lag = 0.4;
+        let then = [5.0 - 1.5 * lag, 4.0, 2.0];
+        let rel = [then[0] - 10.0, then[1], then[2]];
+        let (az, zen) = angles_of(array.to_array(rel));
+        let sigma = (0.02, 0.02);
+        let mut f = Ekf::new(start, p);
+        let ll = f.update_bearing_other(&array, (az, zen), sigma, lag, (4.0, 0.05)).unwrap();
+        let moved = |f: &Ekf| (0..3).map(|i| (f.x[i] - start[i]).powi(2)).sum::<f64>().sqrt();
+        assert!(moved(&f) < 1e-6, "moved {} m", moved(&f));
+        let mut g = Ekf::new(start, p);
+        g.update_bearing_other(&array, (az, zen), sigma, 0.0, (4.0, 0.05)).unwrap();
+        assert!(moved(&g) > 0.1, "moved {} m", moved(&g));
+        // 1.2 rad off: gated, nothing moves, scored as on the gate (below the exact one).
+        let mut h = Ekf::new(start, p);
+        let gated =
+            h.update_bearing_other(&array, (az + 1.2, zen), sigma, lag, (4.0, 0.05)).unwrap();
+        assert_eq!(h.x, start);
+        // Its likelihood is the outlier floor, ln(ε / 2π²), whatever the hypothesis.
+        let floor = (0.05 / (std::f64::consts::TAU * std::f64::consts::PI)).ln();
+        assert!((gated - floor).abs() < 1e-6 && gated < ll, "{gated} against {ll}, floor {floor}");
     }
 
     #[test]
