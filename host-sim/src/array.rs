@@ -72,6 +72,9 @@ pub struct ArrayConfig {
     pub dead_mics: Vec<usize>,
     /// Microphones (indices) stuck at a constant output of [`STUCK_PA`].
     pub stuck_mics: Vec<usize>,
+    /// The board's link is down (a cable pulled) over `[from, to)`, s of the array's own
+    /// clock: what it sends meanwhile is lost, the board runs on.
+    pub link_down_s: Option<[f64; 2]>,
 }
 
 /// The constant a stuck microphone outputs, Pa (a quarter of the default digital full scale).
@@ -107,6 +110,14 @@ impl ArrayConfig {
             && self.self_noise_db.is_finite())
         {
             return Err(format!("array {}: mismatches must not be negative", self.id));
+        }
+        if let Some([a, b]) = self.link_down_s {
+            if !(a.is_finite() && b.is_finite() && 0.0 <= a && a < b) {
+                return Err(format!(
+                    "array {}: link_down_s must be [from, to] with 0 <= from < to, s (got [{a}, {b}])",
+                    self.id
+                ));
+            }
         }
         Ok(())
     }
@@ -159,6 +170,7 @@ mod tests {
             phase_mismatch_us: 0.0,
             dead_mics: Vec::new(),
             stuck_mics: Vec::new(),
+            link_down_s: None,
         };
         // Mic 0 on the array's +x, which points along ENU +y.
         assert!((a.mic_position(0) - Vector3::new(1.0, 2.0463, 0.5)).norm() < 1e-12);

@@ -74,6 +74,8 @@ pub struct ArrayRecording {
     pub yaw_rad: f64,
     /// The array's sample clock against true time.
     pub clock: Clock,
+    /// The link is down over `[from, to)`, s of the array's clock ([`array::ArrayConfig`]).
+    pub link_down_s: Option<[f64; 2]>,
     /// One channel per microphone, sound pressure in pascals.
     pub channels: Vec<Vec<f32>>,
 }
@@ -89,6 +91,7 @@ impl ArrayRecording {
             position_m: array.position_m.into(),
             yaw_rad: array.yaw_rad,
             clock: array.clock,
+            link_down_s: array.link_down_s,
             channels: Vec::new(),
         }
     }

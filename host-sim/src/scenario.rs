@@ -50,7 +50,9 @@
 //! [[array]]   id, geometry ["respeaker-6mic"] or positions = [[x, y], ...], position = [x, y, z],
 //!             yaw_deg [0], clock_offset_s [0], clock_drift_ppm [0], self_noise_db [35],
 //!             gain_mismatch_db [0.3], phase_mismatch_us [2], dead_mics [[]] (indices of
-//!             microphones that output 0), stuck_mics [[]] (indices stuck at a constant 5 Pa)
+//!             microphones that output 0), stuck_mics [[]] (indices stuck at a constant 5 Pa),
+//!             link_down_s = [from, to] [none] (the link is down then, s of the array's clock:
+//!             its frames are lost, the board runs on)
 //! [render]    rotor_sources = "each" | "direct" | "centre" ["direct"], block_samples [128],
 //!             control_rate_hz [1000], diffraction_ref_hz [500], absorption [true]
 //! ```
@@ -273,6 +275,7 @@ struct FileArray {
     dead_mics: Vec<usize>,
     #[serde(default)]
     stuck_mics: Vec<usize>,
+    link_down_s: Option<[f64; 2]>,
 }
 fn d_self_noise() -> f64 {
     35.0
@@ -813,6 +816,7 @@ impl Scenario {
                 phase_mismatch_us: a.phase_mismatch_us,
                 dead_mics: a.dead_mics.clone(),
                 stuck_mics: a.stuck_mics.clone(),
+                link_down_s: a.link_down_s,
             };
             if let Some(m) =
                 cfg.dead_mics.iter().chain(&cfg.stuck_mics).find(|&&m| m >= cfg.positions.len())

@@ -33,6 +33,10 @@ pub struct LinkStream {
     firmware: from_dsp::FirmwareCounters,
     /// TDM words not handed to the pipeline yet (less than one chunk).
     pending: Vec<i32>,
+    /// Samples handed to the pipeline so far.
+    samples: u64,
+    /// The link is down over these samples of the array's clock (frames sent then are lost).
+    down: Option<(u64, u64)>,
     bytes: Vec<u8>,
     error: Option<String>,
 }
@@ -63,6 +67,11 @@ impl LinkStream {
             encoder,
             firmware: from_dsp::FirmwareCounters::default(),
             pending: Vec::with_capacity(CHUNK_FRAMES * TDM_SLOTS),
+            samples: 0,
+            down: rec.link_down_s.map(|[a, b]| {
+                let rate = f64::from(rec.sample_rate_hz);
+                ((a * rate) as u64, (b * rate) as u64)
+            }),
             bytes: buf[..n].to_vec(),
             error: None,
         })
@@ -90,12 +99,17 @@ impl LinkStream {
     /// Hands the pending words to the pipeline.
     fn flush(&mut self) {
         let mut buf = [0u8; MAX_ENCODED_LEN];
+        // A frame goes out when the chunk that completes it has been handed over: with the
+        // link down then, it is lost (the encoder's sequence number still counts it).
+        self.samples += (self.pending.len() / TDM_SLOTS) as u64;
+        let lost = self.down.is_some_and(|(a, b)| (a..b).contains(&self.samples));
         let (encoder, firmware, bytes, error) =
             (&mut self.encoder, &self.firmware, &mut self.bytes, &mut self.error);
         self.pipeline.push(&self.pending, &mut |out| match from_dsp::encode_output(
             encoder, &out, firmware, &mut buf,
         ) {
-            Ok(n) => bytes.extend_from_slice(&buf[..n]),
+            Ok(n) if !lost => bytes.extend_from_slice(&buf[..n]),
+            Ok(_) => {}
             Err(e) => *error = Some(format!("{e:?}")),
         });
         self.pending.clear();
