@@ -14,9 +14,10 @@ use aim_tracker::link::{self, serial::Link};
 #[derive(clap::Args)]
 pub struct SerialArgs {
     /// Serial port of the array board (`/dev/ttyACM0`, `COM3`, a stable name such as
-    /// `/dev/serial/by-id/…` survives replugging best).
+    /// `/dev/serial/by-id/…` survives replugging best). `aim track` takes it repeated, one
+    /// per board.
     #[arg(long, required_unless_present = "zenoh", conflicts_with = "zenoh")]
-    pub serial: Option<String>,
+    pub serial: Vec<String>,
     /// Baud rate.
     #[arg(long, default_value_t = link::serial::DEFAULT_BAUD)]
     pub baud: u32,
@@ -58,8 +59,16 @@ impl SerialArgs {
         self.reconnect.open(self.port()?, self.baud)
     }
 
-    /// The `--serial` port (absent only with `--zenoh`).
+    /// The `--serial` port (absent only with `--zenoh`); more than one is an error here.
     pub fn port(&self) -> anyhow::Result<&str> {
-        self.serial.as_deref().ok_or_else(|| anyhow::anyhow!("give --serial PORT or --zenoh"))
+        match self.serial.as_slice() {
+            [one] => Ok(one),
+            [] => anyhow::bail!("give --serial PORT or --zenoh"),
+            many => anyhow::bail!(
+                "this command reads one board: give one --serial, not {} ({})",
+                many.len(),
+                many.join(", ")
+            ),
+        }
     }
 }

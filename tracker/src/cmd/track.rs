@@ -58,6 +58,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.link.zenoh {
         return track_zenoh(&args, &mut session, mavlink.as_ref(), map);
     }
+    if args.link.serial.len() > 1 {
+        return track_ports(&args, &mut session, mavlink.as_ref(), map);
+    }
     let port = args.link.port()?;
     let mut source = FrameSource::new(Tap::new(args.link.open()?, map.clone(), Pace::Free));
     // Scripts and tests wait for this line before they send: the port is configured now.
@@ -72,6 +75,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     result?;
     if source.get_mut().get_mut().interrupted() {
+        return Err(Interrupted.into());
+    }
+    Ok(())
+}
+
+/// `aim track --serial A --serial B ...`: every board's link read at once, the frames through
+/// the intake in the order they arrive ([`aim_tracker::link::Ports`]).
+fn track_ports(
+    args: &Args,
+    session: &mut aim_tracker::session::Session,
+    mavlink: Option<&aim_tracker::output::mavlink::MavlinkOut>,
+    map: Option<LiveMap>,
+) -> anyhow::Result<()> {
+    let ports = &args.link.serial;
+    if let Some(p) = ports.iter().enumerate().find_map(|(i, p)| ports[..i].contains(p).then_some(p))
+    {
+        anyhow::bail!("--serial {p} is given twice");
+    }
+    let mut links: Vec<(String, Box<dyn std::io::Read + Send>)> = Vec::new();
+    for p in ports {
+        let link = args.link.reconnect.open(p, args.link.baud)?;
+        links.push((p.clone(), Box::new(link)));
+    }
+    let feed = aim_tracker::link::Ports::spawn(links)
+        .map_err(|e| anyhow::anyhow!("starting the port readers: {e}"))?;
+    let mut source = FrameSource::new(Tap::new(feed, map.clone(), Pace::Free));
+    // Scripts and tests wait for this line before they send: every port is configured now.
+    eprintln!("tracking {} at {} baud", ports.join(", "), args.link.baud);
+    let name = ports.join(" + ");
+    let site = &args.options.site;
+    let result = track_frames(&name, &mut source, session, site, true, mavlink, &mut |fix| {
+        super::serve::show(&map, fix)
+    });
+    if let Some(map) = &map {
+        map.end();
+    }
+    result?;
+    if aim_tracker::link::serial::interrupt_flag()?.load(std::sync::atomic::Ordering::SeqCst) {
         return Err(Interrupted.into());
     }
     Ok(())

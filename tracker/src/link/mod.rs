@@ -26,9 +26,11 @@ pub mod boards;
 pub mod bus;
 pub mod json;
 pub mod merge;
+pub mod ports;
 pub mod record;
 pub mod serial;
 mod source;
 
 pub use merge::Merged;
+pub use ports::Ports;
 pub use source::{open_input, FrameSource};
