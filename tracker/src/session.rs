@@ -349,6 +349,7 @@ impl Session {
                 }
             }
         }
+        let (tracked, takeovers) = (self.tracker.array_id(), self.tracker.takeovers());
         let tracker = &mut self.tracker;
         let span = &mut self.inputs_span;
         let mut fixes = Vec::new();
@@ -357,6 +358,12 @@ impl Session {
             keep(history, &r);
             feed(tracker, span, r, &mut fixes)
         })?;
+        if self.tracker.takeovers() != takeovers {
+            eprintln!(
+                "note: array {tracked} fell silent; array {} took over the track",
+                self.tracker.array_id()
+            );
+        }
         Ok(self.stamp(fixes))
     }
 
@@ -456,6 +463,7 @@ impl Session {
                 "bad_span": i.bad_span,
                 "late": i.late,
             },
+            "takeovers": self.tracker.takeovers(),
             "arrays": status["arrays"],
             "unknown_arrays": status["unknown_arrays"],
             "fixes": f.fixes,

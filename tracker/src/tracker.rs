@@ -425,8 +425,7 @@ impl Tracker {
         };
         if !own && self.config.fuse_arrays && t.is_finite() {
             if let Input::Bearing(b) = &input {
-                let silent = t - self.latest_input_t > self.config.failover_s;
-                if silent && self.latest_input_t.is_finite() {
+                if self.may_take_over(b.array_id, t) {
                     self.take_over(b.array_id);
                 }
             }
@@ -499,6 +498,40 @@ impl Tracker {
         self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
         self.split = WakeSplit::new(WakeConfig::split(), self.profile.wake_split_per_mps());
         self.split_online = Self::online_split(&self.profile, &self.config);
+    }
+
+    /// Whether `array_id`, with a bearing at `t`, takes over the track: the tracked array has
+    /// sent nothing for more than [`TrackerConfig::failover_s`] (but not beyond
+    /// [`TrackerConfig::max_gap_s`], after which the track restarts anyway), or nothing at
+    /// all, while `array_id` was heard all along (its audio covers the silence, or the last
+    /// `failover_s`). A board back from a reboot, whose first frames the intake places after
+    /// a pause, has not been heard all along and does not take the track back.
+    fn may_take_over(&self, array_id: u16, t: f64) -> bool {
+        let c = &self.config;
+        let since = if self.latest_input_t.is_finite() {
+            let silence = t - self.latest_input_t;
+            if silence <= c.failover_s || silence > c.max_gap_s {
+                return false;
+            }
+            self.latest_input_t
+        } else {
+            t - c.failover_s
+        };
+        // The array's audio spans, merged, must cover [since, t] (0.05 s of slack per join).
+        let mut reached = f64::NEG_INFINITY;
+        for &(_, from, to) in self.other_audio.iter().filter(|a| a.0 == array_id) {
+            if reached == f64::NEG_INFINITY {
+                if from > since + 0.05 {
+                    return false;
+                }
+                reached = to;
+            } else if from <= reached + 0.05 {
+                reached = reached.max(to);
+            } else if reached < t - 0.05 {
+                return false;
+            }
+        }
+        reached >= t - 0.3
     }
 
     /// `array_id` takes over the track from the tracked array, which has gone silent (a dead

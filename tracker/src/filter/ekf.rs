@@ -239,7 +239,7 @@ impl Ekf {
     /// state was then, `x − v·lag_s`. The zenith bias state is shared by every array (all
     /// hear the same ceiling; the arrays' different distances tell the bias from the height).
     /// Returns the bearing's log-likelihood under a Gaussian with outliers: with probability
-    /// `outlier` a bearing is a reflection or another source, uniform over the directions, so
+    /// `outlier` a bearing is a reflection or another source, uniform in the angles, so
     /// one far off costs every hypothesis the same and a diffuse hypothesis gains nothing.
     /// A bearing whose Mahalanobis distance is beyond `gate` updates nothing; None (no update)
     /// if the innovation covariance is singular.
@@ -271,10 +271,11 @@ impl Ekf {
         if det <= 0.0 {
             return None;
         }
-        // Density of the bearing: Gaussian with probability 1 − ε, uniform over the sphere of
-        // directions (2π of azimuth × π of zenith) with probability ε.
+        // Density of the bearing in (azimuth, zenith): Gaussian with probability 1 − ε, else
+        // uniform over the angles a planar array reports (2π of azimuth × π/2 of zenith).
+        let outlier = outlier.clamp(1e-9, 1.0);
         let gaussian = (-0.5 * maha).exp() / (std::f64::consts::TAU * det.sqrt());
-        let uniform = 1.0 / (std::f64::consts::TAU * std::f64::consts::PI);
+        let uniform = 1.0 / (std::f64::consts::PI * std::f64::consts::PI);
         let ll = ((1.0 - outlier) * gaussian + outlier * uniform).ln();
         if maha <= gate * gate {
             self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)?;
@@ -464,13 +465,13 @@ mod tests {
         let mut g = Ekf::new(start, p);
         g.update_bearing_other(&array, (az, zen), sigma, 0.0, (4.0, 0.05)).unwrap();
         assert!(moved(&g) > 0.1, "moved {} m", moved(&g));
-        // 1.2 rad off: gated, nothing moves, scored as on the gate (below the exact one).
+        // 1.2 rad off: gated, nothing moves, scored at the outlier floor (below the exact one).
         let mut h = Ekf::new(start, p);
         let gated =
             h.update_bearing_other(&array, (az + 1.2, zen), sigma, lag, (4.0, 0.05)).unwrap();
         assert_eq!(h.x, start);
-        // Its likelihood is the outlier floor, ln(ε / 2π²), whatever the hypothesis.
-        let floor = (0.05 / (std::f64::consts::TAU * std::f64::consts::PI)).ln();
+        // Its likelihood is the outlier floor, ln(ε / π²), whatever the hypothesis.
+        let floor = (0.05 / (std::f64::consts::PI * std::f64::consts::PI)).ln();
         assert!((gated - floor).abs() < 1e-6 && gated < ll, "{gated} against {ll}, floor {floor}");
     }
 

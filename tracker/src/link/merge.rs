@@ -22,8 +22,10 @@ use aim_wire::{Body, Frame, LinkStats};
 
 use super::FrameSource;
 
-/// Largest step of a recording's ordering key from one frame to the next, s.
-pub const MAX_KEY_STEP_S: f64 = 10.0;
+/// Largest step ahead of a recording's ordering key from one frame to the next that is
+/// followed at once, s (the intake's plausibility window ahead); a longer one, or any step
+/// back, needs a second frame that agrees with it within this.
+pub const MAX_KEY_STEP_S: f64 = 2.0;
 
 /// Several recordings as one byte stream (module docs).
 pub struct Merged<R> {
@@ -52,6 +54,10 @@ struct Input<R> {
     candidate_s: Option<f64>,
 }
 
+/// Pause put between a recording's last key and its first after a reboot, s: the intake's
+/// (`IntakeConfig::epoch_gap_s`), so the merge and the intake place a rebooted board alike.
+const REBOOT_PAUSE_S: f64 = 5.0;
+
 impl<R> Input<R> {
     /// The ordering key of a frame ending at `end_s` on the array's clock (module docs): the
     /// end itself while the recording runs on (within [`MAX_KEY_STEP_S`]); a break (a jump
@@ -68,7 +74,8 @@ impl<R> Input<R> {
         match self.candidate_s.take() {
             Some(c) if (e - c).abs() <= MAX_KEY_STEP_S => {
                 if c < self.key_s {
-                    self.offset_s += self.key_s - c;
+                    // A reboot: the new count goes on after a pause, as the intake places it.
+                    self.offset_s += self.key_s - c + REBOOT_PAUSE_S;
                 }
                 self.key_s = end_s + self.offset_s;
             }
@@ -264,9 +271,10 @@ mod tests {
         let b: Vec<Frame> = (0..6).map(|k| doa(2, k, 4096 + 8192 * u64::from(k))).collect();
         let got = order(vec![("a", bytes(&a)), ("b", bytes(&b))]);
         let pos = |f: (u8, u16)| got.iter().position(|&g| g == f).unwrap();
-        // Array 1's frames 2..=5 stay before array 2's frames 3..=5 (keys 24576 + 8192·0..).
+        // The absurd frame keeps its place; after the reboot, array 1 goes on after a pause
+        // (its last key, 0.68 s, + 5 s), after all of array 2's frames (the last ends 1.1 s).
         assert!(pos((1, 2)) < pos((2, 2)), "{got:?}");
-        assert!(pos((1, 5)) < pos((2, 5)), "{got:?}");
+        assert!(pos((1, 5)) > pos((2, 5)), "{got:?}");
         assert_eq!(got.len(), 12);
     }
 
@@ -283,5 +291,22 @@ mod tests {
         // b's frame k ends at (k + 1)·8192 samples: 30 s is after its frame 175.
         assert!(pos((1, 6)) > pos((2, 175)), "{got:?}");
         assert!(pos((1, 3)) < pos((2, 4)), "{got:?}");
+    }
+
+    /// One stray index a few seconds ahead (within the intake's reach of a silence) does not
+    /// move the rest of its recording: it is followed only when a second frame agrees. The
+    /// pause after a reboot is the intake's.
+    #[test]
+    fn a_stray_index_a_few_seconds_ahead_moves_nothing() {
+        let mut a: Vec<Frame> = (0..8).map(|k| doa(1, k, 8192 * u64::from(k))).collect();
+        a[3].header.sample_index += 5 * 48_000;
+        let b: Vec<Frame> = (0..8).map(|k| doa(2, k, 4096 + 8192 * u64::from(k))).collect();
+        let got = order(vec![("a", bytes(&a)), ("b", bytes(&b))]);
+        let pos = |f: (u8, u16)| got.iter().position(|&g| g == f).unwrap();
+        for k in 4..8 {
+            assert!(pos((1, k)) < pos((2, k)), "frame {k}: {got:?}");
+        }
+        let intake = crate::intake::IntakeConfig::default().epoch_gap_s;
+        assert_eq!(REBOOT_PAUSE_S, intake);
     }
 }
