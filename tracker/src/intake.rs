@@ -4,7 +4,10 @@
 //! [`crate::session::Session`]). Per array it keeps:
 //!
 //! - **a time base per boot** (an *epoch*): sample indices become host seconds through the site
-//!   file's clock offset and drift ([`crate::site::ArrayPose::sample_time`]) for the first boot.
+//!   file's clock offset and drift ([`crate::site::ArrayPose::sample_time`]) for the first boot
+//!   (an array whose clock puts its first frames more than [`IntakeConfig::window_ahead_s`]
+//!   from the other arrays' newest audio, a board started at another time, is placed at that
+//!   newest audio instead: counted in [`IntakeStats::aligned_to_link`]).
 //!   A reboot starts a new epoch in one of two ways: a `Hello` whose boot count differs from the
 //!   array's previous `Hello` (at once: everything the old boot left in the reorder stage is
 //!   released first), or, when that `Hello` was lost, the sample index jumping back (a restarted
@@ -100,6 +103,10 @@ pub struct IntakeStats {
     pub bad_span: u64,
     /// Inputs older than what the reorder stage had already released: dropped.
     pub late: u64,
+    /// Arrays whose first time base was placed at the link's newest audio because their own
+    /// clock put it more than [`IntakeConfig::window_ahead_s`] away (a board started at
+    /// another time than the others).
+    pub aligned_to_link: u64,
 }
 
 /// A `Hello` that contradicts the site file (or an earlier `Hello` of the same array).
@@ -301,8 +308,23 @@ impl Intake {
             if state.pending.len() >= c.confirm_frames.max(1) {
                 let chain = std::mem::take(&mut state.pending);
                 let first = chain.iter().map(|f| f.header.sample_index).min().unwrap_or(start);
+                let chain_end = chain.iter().map(frame_end).max().unwrap_or(first);
                 state.timeline = Some(match state.timeline {
-                    None => Timeline { shift_s: 0.0, newest_end: first },
+                    // An array's first time base is its own clock (with the site's offset and
+                    // drift), unless the other arrays' newest audio, which arrived with it,
+                    // is further away than the window: a board started at another time is
+                    // placed where the link says it is (to within a frame or two).
+                    None => {
+                        let own = pose.sample_time(chain_end as f64, fs);
+                        let shift_s =
+                            if self.now.is_finite() && (own - self.now).abs() > c.window_ahead_s {
+                                self.stats.aligned_to_link += 1;
+                                self.now - own
+                            } else {
+                                0.0
+                            };
+                        Timeline { shift_s, newest_end: first }
+                    }
                     Some(old) if first > old.newest_end => {
                         self.stats.gaps += 1;
                         Timeline { shift_s: old.shift_s, newest_end: first }
@@ -571,6 +593,45 @@ mod tests {
             Peaks { detection: aim_wire::Detection::Unstated, quality: heapless::Vec::new(), ..p };
         let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(older), 0.0) else { panic!() };
         assert_eq!(s.peaks.len(), 1);
+    }
+
+    /// A board started 100 s before another (its count 100 s ahead) is placed where the link
+    /// says its frames are, next to the other array's; boards within the window keep their
+    /// own clocks.
+    #[test]
+    fn a_board_started_at_another_time_is_placed_by_the_link() {
+        let site = Site {
+            arrays: vec![
+                ArrayPose::new(1, [0.0; 3], 0.0, 0.0, 0.0),
+                ArrayPose::new(2, [3.0, 0.0, 0.0], 0.0, 0.0, 0.0),
+                ArrayPose::new(3, [6.0, 0.0, 0.0], 0.0, 0.0, 0.0),
+            ],
+            room: None,
+            sample_rate_hz: Some(48_000),
+        };
+        let mut intake = Intake::new(site, IntakeConfig::default());
+        let doa = |array_id, sample_index| Frame {
+            header: Header { array_id, seq: 0, sample_index },
+            body: Body::Doa(Doa { span_samples: 8192, ..Doa::new(0.5, 1.0, 0.25, 0.8) }),
+        };
+        let mut bearings: Vec<(u16, f64)> = Vec::new();
+        let mut sink = |r: Released| {
+            if let Released::Input(Input::Bearing(b)) = r {
+                bearings.push((b.array_id, b.t));
+            }
+        };
+        // Link order: the three boards' frames as they end; array 2 counts from 100 s, array 3
+        // from 0.5 s (within the window).
+        for k in 0..30u64 {
+            for (id, from) in [(1u8, 0u64), (2, 4_800_000), (3, 24_000)] {
+                intake.push(&doa(id, from + 8192 * k), &mut sink).unwrap();
+            }
+        }
+        intake.finish(&mut sink);
+        let last = |id: u16| bearings.iter().filter(|b| b.0 == id).map(|b| b.1).fold(0.0, f64::max);
+        assert!((last(2) - last(1)).abs() < 0.5, "{} against {}", last(2), last(1));
+        assert!((last(3) - last(1) - 0.5).abs() < 1e-9, "{} against {}", last(3), last(1));
+        assert_eq!(intake.stats().aligned_to_link, 1);
     }
 
     #[test]

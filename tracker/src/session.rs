@@ -462,6 +462,7 @@ impl Session {
                 "out_of_window": i.out_of_window,
                 "bad_span": i.bad_span,
                 "late": i.late,
+                "aligned_to_link": i.aligned_to_link,
             },
             "takeovers": self.tracker.takeovers(),
             "arrays": status["arrays"],
