@@ -890,6 +890,65 @@ mod tests {
     use crate::observation::{angles_of, Bearing, BpfPeak};
     use crate::site::ArrayPose;
 
+    /// The take-over (oracle: the rules of [`Tracker::may_take_over`]): array 1 tracks a
+    /// still drone heard by both arrays, falls silent at 5 s; array 2, heard all along, takes
+    /// over after `failover_s` and the fixes go on; array 1 back after a pause (a reboot's new
+    /// epoch: not heard through it) does not take the track back.
+    #[test]
+    fn a_silent_array_is_taken_over_once_by_one_heard_all_along() {
+        let site = Site {
+            arrays: vec![
+                ArrayPose::new(1, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0),
+                ArrayPose::new(2, [8.0, 0.0, 0.0], 0.0, 0.0, 0.0),
+            ],
+            room: None,
+            sample_rate_hz: None,
+        };
+        let drone = [4.0, 3.0, 2.0];
+        let mut tracker =
+            Tracker::new(site, Profile::dji_mini_2(), FilterKind::Aim, TrackerConfig::default())
+                .unwrap();
+        tracker.gate_on_audio();
+        let bearing = |id: u16, t: f64| {
+            let origin = if id == 1 { 0.0 } else { 8.0 };
+            let (az, zen) = angles_of([drone[0] - origin, drone[1], drone[2]]);
+            Input::Bearing(Bearing {
+                t,
+                array_id: id,
+                azimuth_rad: az,
+                zenith_rad: zen,
+                residual: 0.2,
+                quality: 3.0,
+            })
+        };
+        let mut fixes = Vec::new();
+        let mut step = |tracker: &mut Tracker, id: u16, t: f64| {
+            tracker.add_audio(id, t - 0.085, t + 0.085);
+            fixes.extend(tracker.push(bearing(id, t)));
+        };
+        for k in 0..60 {
+            let t = f64::from(k) * 0.17;
+            // Array 1 silent from 5.1 s (k = 30), back at k = 50 after a reboot, its frames
+            // placed 1.5 s later than the others' (the intake's pause after an epoch).
+            match k {
+                0..30 => step(&mut tracker, 1, t),
+                50.. => step(&mut tracker, 1, t + 1.5),
+                _ => {}
+            }
+            step(&mut tracker, 2, t);
+            if k == 40 {
+                assert_eq!((tracker.takeovers(), tracker.array_id()), (1, 2), "at {k}");
+            }
+        }
+        assert_eq!((tracker.takeovers(), tracker.array_id()), (1, 2), "taken back");
+        fixes.extend(tracker.flush());
+        let times: Vec<f64> = fixes.iter().map(|f| f.t).collect();
+        assert!(times.windows(2).all(|w| w[1] - w[0] < 0.15), "a gap in {times:?}");
+        let last = fixes.last().unwrap().position;
+        let err = (0..3).map(|i| (last[i] - drone[i]).powi(2)).sum::<f64>().sqrt();
+        assert!(err < 0.5, "{err} m off at the end");
+    }
+
     /// Classes of the fixes a hovering drone gets while it yaws on the spot: 6 s of hover,
     /// then 1.5 s of odd/even split (±3.5 % rotor speed, total thrust kept) heard as the DSP
     /// hears it — the upper half alone, the lower half alone, or both — then hover again.
