@@ -1,5 +1,6 @@
-//! `aim replay FRAMES --site SITE.toml`: track from a recording of frames (or `-` for stdin)
-//! and print one JSON fix per output period:
+//! `aim replay FRAMES [FRAMES...] --site SITE.toml`: track from a recording of frames (or `-`
+//! for stdin; several recordings, one per board, are read as one link by
+//! [`aim_tracker::link::Merged`]) and print one JSON fix per output period:
 //! `{"t":..,"available":..,"x":..,"y":..,"z":..,"motion":"hover|yaw|horizontal|vertical","los":true|false,"drone":..}`
 //! (`t`: the instant it describes; `available`: when the array had sent what it used, s;
 //! `drone`: the classifier's verdict on the array's last 6 `Mfcc` frames,

@@ -1,6 +1,7 @@
-//! `aim track --serial PORT [--baud N] --site SITE.toml`: track live from an array's serial
-//! link and print one JSON fix per output period (as `aim replay`, through the same intake),
-//! until interrupted or the port goes away; then the statistics line on stderr.
+//! `aim track --serial PORT [--serial PORT2 ...] [--baud N] --site SITE.toml`: track live from
+//! the arrays' serial links (several read at once by [`aim_tracker::link::Ports`]) and print
+//! one JSON fix per output period (as `aim replay`, through the same intake), until
+//! interrupted or the ports go away; then the statistics line on stderr.
 //!
 //! The port is a [`aim_tracker::link::serial::Link`]: unplugging the board is said on stderr
 //! and tracking goes on when the port returns (`--reconnect`, `--give-up`). On Ctrl-C
