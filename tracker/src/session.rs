@@ -88,7 +88,7 @@ pub struct Identifier {
 /// seconds of sound flips between look-alike types (tuning seeds: BENCHMARKS.md
 /// "Issue 16, session 10").
 pub const PROFILE_SWITCH_VERDICTS: u32 = 40;
-/// Least share of the evidence ([`Identifier::push`]) of the class whose profile is taken.
+/// Least share of the evidence (`Identifier::push`) of the class whose profile is taken.
 pub const PROFILE_SWITCH_PROBABILITY: f64 = 0.5;
 /// Spread of a drone's BPF about its profile's hover BPF in [`bpf_fit`], natural-log units
 /// (0.1: ±10 %, airframe spread and ordinary manoeuvres).

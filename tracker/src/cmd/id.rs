@@ -27,7 +27,7 @@ pub struct Args {
 
 #[derive(clap::Subcommand)]
 enum IdCommand {
-    /// Train a model on a folder of labelled recordings (DIR/<class>/*.wav).
+    /// Train a model on a folder of labelled recordings (`DIR/<class>/*.wav`).
     Train(TrainArgs),
     /// Evaluate a model on a folder of labelled recordings.
     Eval(EvalArgs),

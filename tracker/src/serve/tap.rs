@@ -13,7 +13,8 @@ use aim_wire::{Body, Deframer, Frame};
 
 use super::LiveMap;
 
-/// How fast a replay goes: [`Pace::Real`] is the link's own pace, [`Pace::Times`] `n` times it.
+/// How fast a replay goes: [`Pace::Free`] as fast as it can, [`Pace::Times`] `n` times the
+/// link's own pace (1: real time).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Pace {
     /// As fast as the reader gives bytes.
