@@ -465,17 +465,19 @@ fn check_hello(
     Ok(())
 }
 
-/// Samples a frame describes (0 for a `Hello`).
+/// Samples a frame describes (`Doa`, `Peaks`, `Mfcc`; 0 for the others).
 fn frame_span(frame: &Frame) -> u32 {
     match &frame.body {
         Body::Doa(d) => d.span_samples,
         Body::Peaks(p) => p.span_samples,
+        Body::Mfcc(m) => m.span_samples,
         _ => 0,
     }
 }
 
-/// Index of the sample after the last one a frame describes.
-fn frame_end(frame: &Frame) -> u64 {
+/// Index of the sample after the last one a frame describes (its sample index for a frame
+/// without a span).
+pub(crate) fn frame_end(frame: &Frame) -> u64 {
     frame.header.sample_index.saturating_add(u64::from(frame_span(frame)))
 }
 

@@ -174,8 +174,7 @@ impl FramePublisher {
 /// [`Self::interrupted`] says so.
 pub struct FrameFeed {
     samples: Receiver<Vec<u8>>,
-    current: Vec<u8>,
-    pos: usize,
+    current: super::frame_bytes::FrameBytes,
     stop: Option<Arc<AtomicBool>>,
     interrupted: bool,
     _subscriber: zenoh::pubsub::Subscriber<()>,
@@ -196,8 +195,7 @@ impl FrameFeed {
             .with_context(|| format!("subscribing to {FRAMES_ALL}"))?;
         Ok(Self {
             samples: rx,
-            current: Vec::new(),
-            pos: 0,
+            current: Default::default(),
             stop: None,
             interrupted: false,
             _subscriber: subscriber,
@@ -224,17 +222,11 @@ impl Read for FrameFeed {
                 self.interrupted = true;
                 return Ok(0);
             }
-            if self.pos < self.current.len() {
-                let n = buf.len().min(self.current.len() - self.pos);
-                buf[..n].copy_from_slice(&self.current[self.pos..self.pos + n]);
-                self.pos += n;
-                return Ok(n);
+            if !self.current.is_drained() {
+                return Ok(self.current.read_into(buf));
             }
             match self.samples.recv_timeout(QUIET_READ) {
-                Ok(sample) => {
-                    self.current = sample;
-                    self.pos = 0;
-                }
+                Ok(sample) => self.current.set(sample),
                 Err(RecvTimeoutError::Timeout) => {
                     return Err(io::Error::new(io::ErrorKind::TimedOut, "no frames on the bus"))
                 }

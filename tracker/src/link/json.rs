@@ -144,6 +144,15 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
     Value::Object(obj)
 }
 
+/// The link statistics of one of several inputs, named: `{"kind":KIND,KEY:NAME,...}` (the
+/// fields of [`stats`]).
+pub fn named_stats(s: &LinkStats, kind: &str, key: &str, name: &str) -> Value {
+    let mut line = stats(s);
+    line["kind"] = kind.into();
+    line[key] = name.into();
+    line
+}
+
 /// The link statistics, `{"kind":"stats",...}`.
 pub fn stats(s: &LinkStats) -> Value {
     let by_kind: Map<String, Value> =

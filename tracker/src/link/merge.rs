@@ -20,6 +20,7 @@ use std::io::{self, Read};
 
 use aim_wire::{Body, Frame, LinkStats};
 
+use super::frame_bytes::FrameBytes;
 use super::FrameSource;
 
 /// Largest step ahead of a recording's ordering key from one frame to the next that is
@@ -30,9 +31,8 @@ pub const MAX_KEY_STEP_S: f64 = 2.0;
 /// Several recordings as one byte stream (module docs).
 pub struct Merged<R> {
     inputs: Vec<Input<R>>,
-    /// Encoded bytes of the frame being read out, and how far.
-    out: Vec<u8>,
-    pos: usize,
+    /// The frame being read out.
+    out: FrameBytes,
     /// The end of the merge has been reported.
     reported: bool,
 }
@@ -102,7 +102,7 @@ impl<R: Read> Merged<R> {
                 candidate_s: None,
             })
             .collect();
-        Self { inputs, out: Vec::new(), pos: 0, reported: false }
+        Self { inputs, out: FrameBytes::default(), reported: false }
     }
 
     /// Each recording's link statistics so far (damaged frames are counted there; the merged
@@ -155,10 +155,7 @@ impl<R: Read> Merged<R> {
         }
         for input in &self.inputs {
             let s = input.source.stats();
-            let mut line = super::json::stats(s);
-            line["kind"] = "recording".into();
-            line["file"] = input.name.clone().into();
-            eprintln!("{line}");
+            eprintln!("{}", super::json::named_stats(s, "recording", "file", &input.name));
             if s.frames == 0 {
                 eprintln!("warning: {}: no frame decoded (is it an AIM recording?)", input.name);
             }
@@ -168,30 +165,16 @@ impl<R: Read> Merged<R> {
 
 /// When the audio of `frame` ends, s on its array's nominal clock.
 fn end_s(frame: &Frame, rate_hz: f64) -> f64 {
-    let span = match &frame.body {
-        Body::Doa(d) => u64::from(d.span_samples),
-        Body::Peaks(p) => u64::from(p.span_samples),
-        Body::Mfcc(m) => u64::from(m.span_samples),
-        _ => 0,
-    };
-    frame.header.sample_index.saturating_add(span) as f64 / rate_hz
+    crate::intake::frame_end(frame) as f64 / rate_hz
 }
 
 impl<R: Read> Read for Merged<R> {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        while self.pos == self.out.len() {
+        while self.out.is_drained() {
             let Some(frame) = self.next_frame()? else { return Ok(0) };
-            self.out.resize(aim_wire::MAX_ENCODED_LEN, 0);
-            // A frame that decoded encodes again (its fields are within the format's limits).
-            let n = aim_wire::encode(&frame, &mut self.out)
-                .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.to_string()))?;
-            self.out.truncate(n);
-            self.pos = 0;
+            self.out.set(FrameBytes::encode(&frame)?);
         }
-        let n = buf.len().min(self.out.len() - self.pos);
-        buf[..n].copy_from_slice(&self.out[self.pos..self.pos + n]);
-        self.pos += n;
-        Ok(n)
+        Ok(self.out.read_into(buf))
     }
 }
 

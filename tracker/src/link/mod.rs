@@ -24,6 +24,7 @@
 pub mod boards;
 #[cfg(feature = "zenoh")]
 pub mod bus;
+mod frame_bytes;
 pub mod json;
 pub mod merge;
 pub mod ports;

@@ -11,6 +11,7 @@
 use std::io::{self, Read};
 use std::sync::mpsc;
 
+use super::frame_bytes::FrameBytes;
 use super::FrameSource;
 
 /// Frames waiting between the links' threads and the reader; a reader that stops reading
@@ -20,8 +21,7 @@ const QUEUE_FRAMES: usize = 4096;
 /// Several links as one byte stream (module docs).
 pub struct Ports {
     rx: mpsc::Receiver<Vec<u8>>,
-    out: Vec<u8>,
-    pos: usize,
+    out: FrameBytes,
 }
 
 impl Ports {
@@ -32,7 +32,6 @@ impl Ports {
             let tx = tx.clone();
             std::thread::Builder::new().name(format!("port {name}")).spawn(move || {
                 let mut source = FrameSource::new(reader);
-                let mut buf = vec![0u8; aim_wire::MAX_ENCODED_LEN];
                 for frame in source.by_ref() {
                     let frame = match frame {
                         Ok(f) => f,
@@ -41,38 +40,28 @@ impl Ports {
                             break;
                         }
                     };
-                    // A frame that decoded encodes again.
-                    let Ok(n) = aim_wire::encode(&frame, &mut buf) else { continue };
-                    if tx.send(buf[..n].to_vec()).is_err() {
+                    let Ok(bytes) = FrameBytes::encode(&frame) else { continue };
+                    if tx.send(bytes).is_err() {
                         return;
                     }
                 }
-                let mut line = super::json::stats(source.stats());
-                line["kind"] = "port".into();
-                line["port"] = name.into();
-                eprintln!("{line}");
+                eprintln!("{}", super::json::named_stats(source.stats(), "port", "port", &name));
             })?;
         }
-        Ok(Self { rx, out: Vec::new(), pos: 0 })
+        Ok(Self { rx, out: FrameBytes::default() })
     }
 }
 
 impl Read for Ports {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        if self.pos == self.out.len() {
+        if self.out.is_drained() {
             match self.rx.recv() {
-                Ok(frame) => {
-                    self.out = frame;
-                    self.pos = 0;
-                }
+                Ok(frame) => self.out.set(frame),
                 // Every link has ended.
                 Err(_) => return Ok(0),
             }
         }
-        let n = buf.len().min(self.out.len() - self.pos);
-        buf[..n].copy_from_slice(&self.out[self.pos..self.pos + n]);
-        self.pos += n;
-        Ok(n)
+        Ok(self.out.read_into(buf))
     }
 }
 
