@@ -71,11 +71,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         track_frames(port, &mut source, &mut session, site, true, mavlink.as_ref(), &mut |fix| {
             super::serve::show(&map, fix)
         });
-    if let Some(map) = &map {
+    ended(map.as_ref(), result, || Ok(source.get_mut().get_mut().interrupted()))
+}
+
+/// The end of a track: the live map told, then the stream's error, else exit status 130 if
+/// the stream ended on Ctrl-C / SIGTERM (`interrupted`).
+fn ended(
+    map: Option<&LiveMap>,
+    result: anyhow::Result<()>,
+    interrupted: impl FnOnce() -> anyhow::Result<bool>,
+) -> anyhow::Result<()> {
+    if let Some(map) = map {
         map.end();
     }
     result?;
-    if source.get_mut().get_mut().interrupted() {
+    if interrupted()? {
         return Err(Interrupted.into());
     }
     Ok(())
@@ -109,14 +119,9 @@ fn track_ports(
     let result = track_frames(&name, &mut source, session, site, true, mavlink, &mut |fix| {
         super::serve::show(&map, fix)
     });
-    if let Some(map) = &map {
-        map.end();
-    }
-    result?;
-    if aim_tracker::link::serial::interrupt_flag()?.load(std::sync::atomic::Ordering::SeqCst) {
-        return Err(Interrupted.into());
-    }
-    Ok(())
+    ended(map.as_ref(), result, || {
+        Ok(aim_tracker::link::serial::interrupt_flag()?.load(std::sync::atomic::Ordering::SeqCst))
+    })
 }
 
 /// `aim track --zenoh`: the frames of every array on the bus through the same intake; each fix
@@ -146,16 +151,9 @@ fn track_zenoh(
         fixes.put(&fix.to_json())?;
         super::serve::show(&map, fix)
     });
-    if let Some(map) = &map {
-        map.end();
-    }
     // Closing sends the last fixes still queued before the process ends.
     let _ = bus.close().wait();
-    result?;
-    if source.get_mut().get_mut().interrupted() {
-        return Err(Interrupted.into());
-    }
-    Ok(())
+    ended(map.as_ref(), result, || Ok(source.get_mut().get_mut().interrupted()))
 }
 
 /// `aim track --zenoh` in an `aim` built without the bus.
