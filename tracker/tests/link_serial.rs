@@ -3,6 +3,8 @@
 //! side by its path and decodes. Linux only (openpty).
 #![cfg(target_os = "linux")]
 
+mod common;
+
 use std::io::{Read, Write};
 use std::process::{Command, Stdio};
 use std::sync::mpsc;
@@ -114,13 +116,8 @@ fn record_then_replay_gives_the_identical_frame_sequence() {
         .unwrap();
     // `aim record` says "recording ..." once the port is open and raw: only then send.
     let mut stderr = child.stderr.take().unwrap();
-    let mut said = Vec::new();
-    let mut byte = [0u8; 1];
-    while !said.ends_with(b"\n") {
-        assert_eq!(stderr.read(&mut byte).unwrap(), 1, "aim record exited early: {said:?}");
-        said.push(byte[0]);
-    }
-    assert!(String::from_utf8_lossy(&said).starts_with("recording "), "{said:?}");
+    let said = common::first_line(&mut stderr, "aim record");
+    assert!(said.starts_with("recording "), "{said:?}");
 
     let mut stream = vec![0x42, 0x17, 0x99]; // noise before the first frame
     for (i, frame) in sent.iter().enumerate() {

@@ -28,14 +28,8 @@ fn aim_track_reads_two_boards_at_once() {
     let text = format!("{}\n[[array]]\nid = 2\nposition = [3.0, 0.0, 0.0]\n", common::SITE_TOML);
     std::fs::write(&site, text).unwrap();
 
-    let open = || {
-        let pair = nix::pty::openpty(None, None).expect("openpty");
-        let path = nix::unistd::ttyname(&pair.slave).expect("ttyname of the pty slave");
-        let master = std::fs::File::from(pair.master.try_clone().unwrap());
-        (master, pair.slave.try_clone().unwrap(), path)
-    };
-    let (mut m1, s1, p1) = open();
-    let (mut m2, s2, p2) = open();
+    let (mut m1, s1, p1) = common::pty();
+    let (mut m2, s2, p2) = common::pty();
     let mut child = Command::new(env!("CARGO_BIN_EXE_aim"))
         .args(["track", "--reconnect", "false", "--status-every", "0", "--no-id"])
         .args(["--serial", p1.to_str().unwrap(), "--serial", p2.to_str().unwrap(), "--site"])
@@ -45,13 +39,7 @@ fn aim_track_reads_two_boards_at_once() {
         .spawn()
         .unwrap();
     let mut stderr = child.stderr.take().unwrap();
-    let mut said = Vec::new();
-    let mut byte = [0u8; 1];
-    while !said.ends_with(b"\n") {
-        assert_eq!(stderr.read(&mut byte).unwrap(), 1, "aim track exited early: {said:?}");
-        said.push(byte[0]);
-    }
-    let said = String::from_utf8_lossy(&said).to_string();
+    let said = common::first_line(&mut stderr, "aim track");
     assert!(said.starts_with("tracking ") && said.contains(", "), "{said}");
     let mut stdout = child.stdout.take().unwrap();
     let reader = std::thread::spawn(move || {

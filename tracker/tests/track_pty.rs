@@ -45,13 +45,7 @@ fn aim_track_on_a_pty_at_link_pace_equals_aim_replay() {
     let live: usize = frames.iter().map(|f| session.push(f).unwrap().len()).sum();
     assert!(live > 0 && live < replayed.lines().count());
 
-    let pair = nix::pty::openpty(None, None).expect("openpty");
-    let path = nix::unistd::ttyname(&pair.slave).expect("ttyname of the pty slave");
-    // Close-on-exec copies (std duplicates with F_DUPFD_CLOEXEC): `aim track` must not inherit
-    // the master, or closing ours would not hang up its side.
-    let mut master = std::fs::File::from(pair.master.try_clone().unwrap());
-    let slave = pair.slave.try_clone().unwrap();
-    drop(pair);
+    let (mut master, slave, path) = common::pty();
     let mut child = Command::new(env!("CARGO_BIN_EXE_aim"))
         // The end of the stream is the end of the link here (replug is link_unplug.rs's test).
         .args(["track", "--reconnect", "false", "--status-every", "0.5"])
@@ -63,13 +57,8 @@ fn aim_track_on_a_pty_at_link_pace_equals_aim_replay() {
         .unwrap();
     // `aim track` says "tracking ..." once the port is open and raw: only then send.
     let mut stderr = child.stderr.take().unwrap();
-    let mut said = Vec::new();
-    let mut byte = [0u8; 1];
-    while !said.ends_with(b"\n") {
-        assert_eq!(stderr.read(&mut byte).unwrap(), 1, "aim track exited early: {said:?}");
-        said.push(byte[0]);
-    }
-    assert!(String::from_utf8_lossy(&said).starts_with("tracking "), "{said:?}");
+    let said = common::first_line(&mut stderr, "aim track");
+    assert!(said.starts_with("tracking "), "{said:?}");
     let (tx, rx) = std::sync::mpsc::channel();
     let stdout = child.stdout.take().unwrap();
     std::thread::spawn(move || {

@@ -148,3 +148,29 @@ pub fn aim_replay(recording: &Path, site: &Path) -> String {
     assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
     String::from_utf8(replay.stdout).unwrap()
 }
+
+/// A pseudo-terminal pair standing in for a board: the master to write the board's bytes into,
+/// the slave (kept open while the test lives) and its path. Both are close-on-exec copies (std
+/// duplicates with `F_DUPFD_CLOEXEC`): a child `aim` must not inherit the master, or closing
+/// ours would not hang up its side.
+#[cfg(target_os = "linux")]
+pub fn pty() -> (std::fs::File, std::os::fd::OwnedFd, std::path::PathBuf) {
+    let pair = nix::pty::openpty(None, None).expect("openpty");
+    let path = nix::unistd::ttyname(&pair.slave).expect("ttyname of the pty slave");
+    let master = std::fs::File::from(pair.master.try_clone().unwrap());
+    (master, pair.slave.try_clone().unwrap(), path)
+}
+
+/// The first line `who` (a child `aim`) writes on `stderr`, without its newline: commands say
+/// there when their ports are open and raw. Read byte by byte, so the rest stays unread;
+/// panics if the child exits first.
+pub fn first_line(stderr: &mut impl std::io::Read, who: &str) -> String {
+    let mut said = Vec::new();
+    let mut byte = [0u8; 1];
+    while !said.ends_with(b"\n") {
+        assert_eq!(stderr.read(&mut byte).unwrap(), 1, "{who} exited early: {said:?}");
+        said.push(byte[0]);
+    }
+    said.pop();
+    String::from_utf8_lossy(&said).into_owned()
+}
