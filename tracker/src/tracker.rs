@@ -418,29 +418,26 @@ impl Tracker {
     /// heard takes over the track; otherwise other arrays' inputs are dropped.
     pub fn push(&mut self, input: Input) -> Vec<Fix> {
         let t = input.t();
-        let id = self.array_id();
-        let own = match &input {
-            Input::Bearing(b) => b.array_id == id,
-            Input::Spectrum(s) => s.array_id == id,
+        let from = match &input {
+            Input::Bearing(b) => b.array_id,
+            Input::Spectrum(s) => s.array_id,
         };
-        if !own && self.config.fuse_arrays && t.is_finite() {
-            if let Input::Bearing(b) = &input {
-                if self.may_take_over(b.array_id, t) {
-                    self.take_over(b.array_id);
-                }
+        if from != self.array_id() {
+            // Another array's: with fusion, a bearing for the filter, or the take-over (then
+            // it is the tracked array's from here on).
+            let Input::Bearing(b) = &input else { return Vec::new() };
+            if !(self.config.fuse_arrays && t.is_finite()) {
+                return Vec::new();
             }
-        }
-        let own = own || matches!(&input, Input::Bearing(b) if b.array_id == self.array_id());
-        if !own {
-            if let (true, Input::Bearing(b)) = (self.config.fuse_arrays && t.is_finite(), input) {
-                if self.site.arrays.iter().any(|a| a.id == b.array_id) {
+            if !(self.may_take_over(from, t) && self.take_over(from)) {
+                if self.site.arrays.iter().any(|a| a.id == from) {
                     if self.others.len() == OTHERS_KEPT {
                         self.others.pop_front();
                     }
-                    self.others.push_back(b);
+                    self.others.push_back(*b);
                 }
+                return Vec::new();
             }
-            return Vec::new();
         }
         if !t.is_finite() || t + 1e-9 < self.latest_input_t {
             return Vec::new();
@@ -537,9 +534,10 @@ impl Tracker {
     /// `array_id` takes over the track from the tracked array, which has gone silent (a dead
     /// link, a reboot): its direction window, motion class and spectra start afresh; the
     /// filter (a world-frame state), the hover calibration and pattern, and the track go on.
-    fn take_over(&mut self, array_id: u16) {
+    /// Returns whether it did (`array_id` is in the site).
+    fn take_over(&mut self, array_id: u16) -> bool {
         let Some(index) = self.site.arrays.iter().position(|a| a.id == array_id) else {
-            return;
+            return false;
         };
         let c = &self.config;
         self.array_index = index;
@@ -560,6 +558,7 @@ impl Tracker {
         self.others.retain(|b| b.array_id != array_id);
         self.hover_run_s = 0.0;
         self.takeovers = self.takeovers.wrapping_add(1);
+        true
     }
 
     /// How many times another array took over the track ([`TrackerConfig::failover_s`]).

@@ -150,6 +150,25 @@ impl Ekf {
     where
         Const<M>: DimMin<Const<M>, Output = Const<M>>,
     {
+        let (maha, det) = self.innovate(z, hx, h, r, kind, f64::INFINITY)?;
+        Some(-0.5 * (maha + det.ln() + M as f64 * (std::f64::consts::TAU).ln()))
+    }
+
+    /// [`Self::update`] unless the innovation's Mahalanobis distance is beyond `gate` (then
+    /// the state stays); returns the squared distance and the determinant of the innovation
+    /// covariance, or `None` (no update) if that is singular.
+    fn innovate<const M: usize>(
+        &mut self,
+        z: &[f64; M],
+        hx: &[f64; M],
+        h: &SMatrix<f64, M, STATE>,
+        r: &SMatrix<f64, M, M>,
+        kind: Residual,
+        gate: f64,
+    ) -> Option<(f64, f64)>
+    where
+        Const<M>: DimMin<Const<M>, Output = Const<M>>,
+    {
         let mut y = SVector::<f64, M>::from_fn(|i, _| z[i] - hx[i]);
         if kind == Residual::AzimuthFirst {
             y[0] = wrap_pi(y[0]);
@@ -161,6 +180,10 @@ impl Ekf {
         if det <= 0.0 {
             return None;
         }
+        let maha = (y.transpose() * s_inv * y)[(0, 0)];
+        if maha > gate * gate {
+            return Some((maha, det));
+        }
         let k = pht * s_inv;
         let dx = k * y;
         for i in 0..STATE {
@@ -168,8 +191,7 @@ impl Ekf {
         }
         let i_kh = StateCov::identity() - k * h;
         self.p = symmetrized(&(i_kh * self.p * i_kh.transpose() + k * r * k.transpose()));
-        let maha = (y.transpose() * s_inv * y)[(0, 0)];
-        Some(-0.5 * (maha + det.ln() + M as f64 * (std::f64::consts::TAU).ln()))
+        Some((maha, det))
     }
 
     /// The predicted bearing (azimuth, zenith without the bias, rad, array frame) and its
@@ -222,16 +244,35 @@ impl Ekf {
         sigma_az: f64,
         sigma_zen: f64,
     ) -> Option<f64> {
-        let ((az0, zen0), jacobian) = self.predicted_bearing(array);
+        let (hx, h, r) = self.bearing_model(array, 0.0, (sigma_az, sigma_zen));
+        self.update(&[azimuth, zenith], &hx, &h, &r, Residual::AzimuthFirst)
+    }
+
+    /// The bearing of `array` as the state predicts it `lag_s` before its time (from
+    /// `x − v·lag_s`; the measured zenith is the true one plus the bias state): the prediction
+    /// (azimuth, zenith, rad), its Jacobian and the noise of standard deviations `sigma`
+    /// (azimuth, zenith, rad).
+    fn bearing_model(
+        &self,
+        array: &ArrayPose,
+        lag_s: f64,
+        (sigma_az, sigma_zen): (f64, f64),
+    ) -> ([f64; 2], SMatrix<f64, 2, STATE>, SMatrix<f64, 2, 2>) {
+        let (p, v) = (self.position(), self.velocity());
+        let then = if lag_s == 0.0 { p } else { [0, 1, 2].map(|i| p[i] - v[i] * lag_s) };
+        let ((az0, zen0), jacobian) = self.predicted_bearing_at(array, then);
         let mut h = SMatrix::<f64, 2, STATE>::zeros();
         for i in 0..3 {
             h[(0, i)] = jacobian[0][i];
             h[(1, i)] = jacobian[1][i];
+            if lag_s != 0.0 {
+                h[(0, 3 + i)] = -lag_s * jacobian[0][i];
+                h[(1, 3 + i)] = -lag_s * jacobian[1][i];
+            }
         }
         h[(1, ZENITH_BIAS)] = 1.0;
-        let zen0 = zen0 + self.x[ZENITH_BIAS];
         let r = diagonal([sigma_az * sigma_az, sigma_zen * sigma_zen]);
-        self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)
+        ([az0, zen0 + self.x[ZENITH_BIAS]], h, r)
     }
 
     /// Bearing update from another array than the tracked one (rad, that array's frame),
@@ -247,40 +288,19 @@ impl Ekf {
         &mut self,
         array: &ArrayPose,
         (azimuth, zenith): (f64, f64),
-        (sigma_az, sigma_zen): (f64, f64),
+        sigma: (f64, f64),
         lag_s: f64,
         (gate, outlier): (f64, f64),
     ) -> Option<f64> {
-        let (p, v) = (self.position(), self.velocity());
-        let then = [p[0] - v[0] * lag_s, p[1] - v[1] * lag_s, p[2] - v[2] * lag_s];
-        let ((az0, zen0), jacobian) = self.predicted_bearing_at(array, then);
-        let mut h = SMatrix::<f64, 2, STATE>::zeros();
-        for i in 0..3 {
-            h[(0, i)] = jacobian[0][i];
-            h[(1, i)] = jacobian[1][i];
-            h[(0, 3 + i)] = -lag_s * jacobian[0][i];
-            h[(1, 3 + i)] = -lag_s * jacobian[1][i];
-        }
-        h[(1, ZENITH_BIAS)] = 1.0;
-        let zen0 = zen0 + self.x[ZENITH_BIAS];
-        let r = diagonal([sigma_az * sigma_az, sigma_zen * sigma_zen]);
-        let s = symmetrized(&(h * self.p * h.transpose() + r));
-        let y = SVector::<f64, 2>::new(wrap_pi(azimuth - az0), zenith - zen0);
-        let maha = (y.transpose() * s.try_inverse()? * y)[(0, 0)];
-        let det = s.determinant();
-        if det <= 0.0 {
-            return None;
-        }
+        let (hx, h, r) = self.bearing_model(array, lag_s, sigma);
+        let z = [azimuth, zenith];
+        let (maha, det) = self.innovate(&z, &hx, &h, &r, Residual::AzimuthFirst, gate)?;
         // Density of the bearing in (azimuth, zenith): Gaussian with probability 1 − ε, else
         // uniform over the angles a planar array reports (2π of azimuth × π/2 of zenith).
         let outlier = outlier.clamp(1e-9, 1.0);
         let gaussian = (-0.5 * maha).exp() / (std::f64::consts::TAU * det.sqrt());
         let uniform = 1.0 / (std::f64::consts::PI * std::f64::consts::PI);
-        let ll = ((1.0 - outlier) * gaussian + outlier * uniform).ln();
-        if maha <= gate * gate {
-            self.update(&[azimuth, zenith], &[az0, zen0], &h, &r, Residual::AzimuthFirst)?;
-        }
-        Some(ll)
+        Some(((1.0 - outlier) * gaussian + outlier * uniform).ln())
     }
 
     /// Azimuth-only update (rad, array frame, standard deviation `sigma`).
