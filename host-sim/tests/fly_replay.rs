@@ -40,12 +40,9 @@ fn replay(frames: &std::path::Path, site: &std::path::Path, kind: FilterKind) ->
 /// What `aim replay FRAMES... --site SITE --filter KIND` prints for several recordings (read
 /// as one link by `link::Merged`).
 fn replay_merged(frames: &[PathBuf], site: &std::path::Path, kind: FilterKind) -> String {
-    let readers = frames
-        .iter()
-        .map(|f| (f.display().to_string(), link::open_input(f.to_str().unwrap()).unwrap()))
-        .collect();
-    let rate = Site::load(site).unwrap().sample_rate_hz.unwrap_or(48_000);
-    let source = FrameSource::new(link::Merged::new(readers, rate));
+    let paths: Vec<String> = frames.iter().map(|f| f.display().to_string()).collect();
+    let merged = link::Merged::open(&paths, &Site::load(site).unwrap()).unwrap();
+    let source = FrameSource::new(merged);
     replay_source(source, site, kind, None)
 }
 

@@ -260,25 +260,17 @@ pub(crate) fn track_recorded(
             .iter()
             .find(|(id, _)| *id == tracked)
             .with_context(|| format!("no recording of array {tracked}"))?;
-        let (name, input): (String, Box<dyn std::io::Read + Send>) = if how.fuse_arrays
-            && rec.raw_paths.len() > 1
-        {
-            let readers = rec
-                .raw_paths
-                .iter()
-                .map(|(_, p)| {
-                    let name = p.display().to_string();
-                    Ok((name.clone(), aim_tracker::link::open_input(&name)?))
-                })
-                .collect::<anyhow::Result<_>>()?;
-            let name = format!("{} recordings in {}", rec.raw_paths.len(), out.display());
-            let rate = site.sample_rate_hz.unwrap_or(aim_tracker::intake::DEFAULT_SAMPLE_RATE_HZ);
-            (name, Box::new(aim_tracker::link::Merged::new(readers, rate)))
-        } else {
-            let name = raw_path.display().to_string();
-            let input = aim_tracker::link::open_input(&name)?;
-            (name, input)
-        };
+        let (name, input): (String, Box<dyn std::io::Read + Send>) =
+            if how.fuse_arrays && rec.raw_paths.len() > 1 {
+                let paths: Vec<String> =
+                    rec.raw_paths.iter().map(|(_, p)| p.display().to_string()).collect();
+                let name = format!("{} recordings in {}", rec.raw_paths.len(), out.display());
+                (name, Box::new(aim_tracker::link::Merged::open(&paths, &site)?))
+            } else {
+                let name = raw_path.display().to_string();
+                let input = aim_tracker::link::open_input(&name)?;
+                (name, input)
+            };
         let mut source = FrameSource::new(input);
         let identifier = aim_tracker::session::Identifier::new(model.clone(), profiles.clone())?;
         let mut session = Session::new(tracker, site.clone(), IntakeConfig::default())

@@ -191,19 +191,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let map = args.options.serve.start(&args.options.site)?;
     let input: Box<dyn std::io::Read + Send> = match args.frames.as_slice() {
         [one] => link::open_input(one)?,
-        many => {
-            if many.iter().any(|f| f == "-") {
-                anyhow::bail!("stdin (`-`) cannot be merged with other recordings");
-            }
-            let readers = many
-                .iter()
-                .map(|f| Ok((f.clone(), link::open_input(f)?)))
-                .collect::<anyhow::Result<_>>()?;
-            let rate = Site::load(&args.options.site)?
-                .sample_rate_hz
-                .unwrap_or(aim_tracker::intake::DEFAULT_SAMPLE_RATE_HZ);
-            Box::new(link::Merged::new(readers, rate))
-        }
+        many => Box::new(link::Merged::open(many, &Site::load(&args.options.site)?)?),
     };
     let mut source = FrameSource::new(Tap::new(input, map.clone(), args.pace));
     let result = track_frames(

@@ -85,6 +85,22 @@ impl<R> Input<R> {
     }
 }
 
+impl Merged<Box<dyn Read + Send>> {
+    /// The merge of the recordings at `paths` (files: stdin cannot be merged), their sample
+    /// indices read at the `site` file's rate until a `Hello` says otherwise.
+    pub fn open(paths: &[String], site: &crate::site::Site) -> anyhow::Result<Self> {
+        if paths.iter().any(|p| p == "-") {
+            anyhow::bail!("stdin (`-`) cannot be merged with other recordings");
+        }
+        let readers = paths
+            .iter()
+            .map(|p| Ok((p.clone(), super::open_input(p)?)))
+            .collect::<anyhow::Result<_>>()?;
+        let rate = site.sample_rate_hz.unwrap_or(crate::intake::DEFAULT_SAMPLE_RATE_HZ);
+        Ok(Self::new(readers, rate))
+    }
+}
+
 impl<R: Read> Merged<R> {
     /// The merge of `readers` (a name for messages and one recording each); `rate_hz` reads
     /// a recording's sample indices until its `Hello` says otherwise (the site file's rate).
