@@ -2,7 +2,8 @@
 //!
 //! Array frame: x right, y forward, z up (the array normal); microphones lie in the plane
 //! z = 0. The array is placed at `position_m` (ENU) with its x axis at `yaw_rad` from ENU +x
-//! towards +y, facing up. Azimuth is measured from the array's +x towards +y, the zenith from
+//! towards +y, facing up, or, mounted under a ceiling or a shelf (`facing_down`), turned over
+//! about its x axis first (roll 180°: array y and z point against the unturned ones). Azimuth is measured from the array's +x towards +y, the zenith from
 //! +z; the direction vector u points from the array towards the source.
 use nalgebra::Vector3;
 
@@ -59,6 +60,8 @@ pub struct ArrayConfig {
     pub position_m: Vector3<f64>,
     /// Rotation of the array's x axis from ENU +x towards +y, rad.
     pub yaw_rad: f64,
+    /// The array faces down (turned over about its x axis, roll 180°) instead of up.
+    pub facing_down: bool,
     /// Sample clock.
     pub clock: Clock,
     /// Self-noise of each microphone as an equivalent sound pressure level, dB re 20 µPa
@@ -84,6 +87,8 @@ impl ArrayConfig {
     /// World position of microphone `i`, ENU m.
     pub fn mic_position(&self, i: usize) -> Vector3<f64> {
         let [x, y] = self.positions[i];
+        // Roll 180° about the array x axis, then yaw: R = Rz(yaw)·Rx(π) on (x, y, 0).
+        let y = if self.facing_down { -y } else { y };
         let (s, c) = self.yaw_rad.sin_cos();
         self.position_m + Vector3::new(c * x - s * y, s * x + c * y, 0.0)
     }
@@ -164,6 +169,7 @@ mod tests {
             positions: preset_positions("respeaker-6mic").unwrap(),
             position_m: Vector3::new(1.0, 2.0, 0.5),
             yaw_rad: std::f64::consts::FRAC_PI_2,
+            facing_down: false,
             clock: Clock { offset_s: 0.0, drift_ppm: 0.0 },
             self_noise_db: 30.0,
             gain_mismatch_db: 0.0,
@@ -174,5 +180,12 @@ mod tests {
         };
         // Mic 0 on the array's +x, which points along ENU +y.
         assert!((a.mic_position(0) - Vector3::new(1.0, 2.0463, 0.5)).norm() < 1e-12);
+        // Mic 1 (60° counter-clockwise seen from the array's front) is on the ENU −x side
+        // facing up and on the +x side facing down: seen from below, the circle runs the
+        // other way.
+        assert!(a.mic_position(1).x < 1.0);
+        let down = ArrayConfig { facing_down: true, ..a };
+        assert!((down.mic_position(0) - Vector3::new(1.0, 2.0463, 0.5)).norm() < 1e-12);
+        assert!(down.mic_position(1).x > 1.0);
     }
 }

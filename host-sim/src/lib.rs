@@ -70,8 +70,10 @@ pub struct ArrayRecording {
     pub positions: Vec<[f64; 2]>,
     /// Array centre, ENU m.
     pub position_m: [f64; 3],
-    /// Rotation of the array x axis from ENU +x towards +y, rad. The array faces up.
+    /// Rotation of the array x axis from ENU +x towards +y, rad.
     pub yaw_rad: f64,
+    /// The array faces down (roll 180° about its x axis), else up.
+    pub facing_down: bool,
     /// The array's sample clock against true time.
     pub clock: Clock,
     /// The link is down over `[from, to)`, s of the array's clock ([`array::ArrayConfig`]).
@@ -90,6 +92,7 @@ impl ArrayRecording {
             positions: array.positions.clone(),
             position_m: array.position_m.into(),
             yaw_rad: array.yaw_rad,
+            facing_down: array.facing_down,
             clock: array.clock,
             link_down_s: array.link_down_s,
             channels: Vec::new(),
@@ -688,6 +691,7 @@ fn make_site(s: &Scenario, c: f64) -> Site {
                 positions: a.positions.iter().map(|p| p.map(|v| (v * 1e9).round() / 1e9)).collect(),
                 position: a.position_m.into(),
                 yaw_deg: a.yaw_rad.to_degrees(),
+                roll_deg: if a.facing_down { 180.0 } else { 0.0 },
             })
             .collect(),
         room: s.room.as_ref().map(|r| SiteRoom { size: r.size_m }),

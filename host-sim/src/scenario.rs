@@ -48,7 +48,8 @@
 //! [[noise]]   position = [x, y, z], centre_hz, bandwidth_hz [100], spl_db, distance_m [1]
 //! [diffuse_noise] spl_db, low_hz [100], high_hz [8000], directions [32]
 //! [[array]]   id, geometry ["respeaker-6mic"] or positions = [[x, y], ...], position = [x, y, z],
-//!             yaw_deg [0], clock_offset_s [0], clock_drift_ppm [0], self_noise_db [35],
+//!             yaw_deg [0], facing = "up" | "down" ["up"] (down: under a ceiling or shelf, turned
+//!             over about its x axis), clock_offset_s [0], clock_drift_ppm [0], self_noise_db [35],
 //!             gain_mismatch_db [0.3], phase_mismatch_us [2], dead_mics [[]] (indices of
 //!             microphones that output 0), stuck_mics [[]] (indices stuck at a constant 5 Pa),
 //!             link_down_s = [from, to] [none] (the link is down then, s of the array's clock:
@@ -261,6 +262,7 @@ struct FileArray {
     position: [f64; 3],
     #[serde(default)]
     yaw_deg: f64,
+    facing: Option<String>,
     #[serde(default)]
     clock_offset_s: f64,
     #[serde(default)]
@@ -804,12 +806,23 @@ impl Scenario {
             if arrays.iter().any(|x: &ArrayConfig| x.id == a.id) {
                 return Err(format!("array id {} appears twice", a.id));
             }
+            let facing_down = match a.facing.as_deref() {
+                None | Some("up") => false,
+                Some("down") => true,
+                Some(other) => {
+                    return Err(format!(
+                        "array {}: facing = \"{other}\" is unknown (\"up\" or \"down\")",
+                        a.id
+                    ))
+                }
+            };
             let cfg = ArrayConfig {
                 id: a.id,
                 geometry,
                 positions,
                 position_m: Vector3::from(a.position),
                 yaw_rad: a.yaw_deg.to_radians(),
+                facing_down,
                 clock: Clock { offset_s: a.clock_offset_s, drift_ppm: a.clock_drift_ppm },
                 self_noise_db: a.self_noise_db,
                 gain_mismatch_db: a.gain_mismatch_db,

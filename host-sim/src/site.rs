@@ -11,7 +11,8 @@
 //! geometry = "respeaker-6mic"     # preset name, or "custom"
 //! positions = [[0.0463, 0.0], ...] # microphone positions in the array frame, m (always written)
 //! position = [8.0, 2.0, 0.05]     # array centre, ENU m
-//! yaw_deg = 0.0                   # array x axis from ENU +x towards +y, degrees; array faces up
+//! yaw_deg = 0.0                   # array x axis from ENU +x towards +y, degrees
+//! roll_deg = 180.0                # only for an array facing down (turned over about its x axis)
 //!
 //! [room]                          # optional
 //! size = [16.0, 16.0, 5.0]        # shoebox [0, Lx] × [0, Ly] × [0, Lz], m
@@ -49,6 +50,14 @@ pub struct SiteArray {
     pub position: [f64; 3],
     /// Rotation of the array's x axis from ENU +x towards +y, degrees.
     pub yaw_deg: f64,
+    /// Rotation about the array's x axis before the yaw, degrees: 180 for an array facing
+    /// down, 0 (not written) for one facing up.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub roll_deg: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// The room, as far as the site file tells it.

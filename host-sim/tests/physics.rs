@@ -453,3 +453,56 @@ fn simulate_writes_the_contracted_files() {
     assert_eq!(site.arrays[0].position, [0.0, 0.0, 1.0]);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// An array under a ceiling, facing down (`facing = "down"`): the directions its pipeline
+/// reports, turned into the world by the pose the site file gives the tracker (roll 180°),
+/// point at the hovering drone. Oracle: the geometry.
+#[test]
+fn an_array_facing_down_hears_the_drone_where_its_site_pose_says() {
+    let text = r#"
+        duration_s = 3.0
+        seed = 5
+        [drone]
+        preset = "dji-mini-2"
+        [path]
+        kind = "hover"
+        position = [3.0, 1.5, 1.5]
+        [[array]]
+        id = 4
+        position = [0.5, 0.0, 5.0]
+        yaw_deg = -40.0
+        facing = "down"
+        self_noise_db = 0.0
+        gain_mismatch_db = 0.0
+        phase_mismatch_us = 0.0
+        [render]
+        rotor_sources = "centre"
+    "#;
+    let scenario = Scenario::from_toml(text, "facing-down").unwrap();
+    let bar = indicatif::ProgressBar::hidden();
+    let (sim, links) =
+        host_sim::eval::link::simulate_links(&scenario, &host_sim::Options::default(), &bar, 20.0)
+            .unwrap();
+    let site_text = sim.site.to_toml().unwrap();
+    assert!(site_text.contains("roll_deg = 180.0"), "{site_text}");
+    let site = aim_tracker::site::Site::parse(&site_text, std::path::Path::new("site.toml")).unwrap();
+    let pose = site.array(4).unwrap();
+    let (frames, errors) = host_sim::eval::link::decode_frames(&links[0]);
+    assert_eq!(errors, 0);
+    let truth: [f64; 3] = [3.0 - 0.5, 1.5, 1.5 - 5.0];
+    let r = (truth[0] * truth[0] + truth[1] * truth[1] + truth[2] * truth[2]).sqrt();
+    let mut checked = 0;
+    for f in &frames {
+        let aim_wire::Body::Doa(d) = &f.body else { continue };
+        let v = aim_tracker::observation::unit_vector(
+            f64::from(d.azimuth_rad()),
+            f64::from(d.zenith_rad()),
+        );
+        let w = pose.to_world(v);
+        let cos = (w[0] * truth[0] + w[1] * truth[1] + w[2] * truth[2]) / r;
+        let off_deg = cos.clamp(-1.0, 1.0).acos().to_degrees();
+        assert!(off_deg < 3.0, "frame {}: {off_deg:.2}° off the drone", f.header.seq);
+        checked += 1;
+    }
+    assert!(checked >= 10, "{checked} DoA frames");
+}
