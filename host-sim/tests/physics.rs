@@ -485,7 +485,8 @@ fn an_array_facing_down_hears_the_drone_where_its_site_pose_says() {
             .unwrap();
     let site_text = sim.site.to_toml().unwrap();
     assert!(site_text.contains("roll_deg = 180.0"), "{site_text}");
-    let site = aim_tracker::site::Site::parse(&site_text, std::path::Path::new("site.toml")).unwrap();
+    let site =
+        aim_tracker::site::Site::parse(&site_text, std::path::Path::new("site.toml")).unwrap();
     let pose = site.array(4).unwrap();
     let (frames, errors) = host_sim::eval::link::decode_frames(&links[0]);
     assert_eq!(errors, 0);

@@ -101,6 +101,15 @@ pub struct TrackerConfig {
     /// and motion class from then on; the filter's state and the hover calibration go on), s.
     /// Less than `max_gap_s`, so the track does not restart.
     pub failover_s: f64,
+    /// With `fuse_arrays`: another array whose distance to the last fix is under this
+    /// fraction of the tracked array's, heard for the last `handover_heard_s`, takes the track
+    /// over (the nearer array hears the drone louder and its bearings pin the drone better);
+    /// 0 never hands over. At most one hand-over per `handover_hold_s`.
+    pub handover_ratio: f64,
+    /// How long the nearer array must have been heard before a hand-over, s.
+    pub handover_heard_s: f64,
+    /// Least time between two take-overs for a nearer array, s.
+    pub handover_hold_s: f64,
 }
 
 impl Default for TrackerConfig {
@@ -124,6 +133,9 @@ impl Default for TrackerConfig {
             online_wake_gain: false,
             fuse_arrays: true,
             failover_s: 1.0,
+            handover_ratio: 0.5,
+            handover_heard_s: 2.0,
+            handover_hold_s: 5.0,
         }
     }
 }
@@ -281,6 +293,10 @@ pub struct Tracker {
     takeovers: u32,
     /// Audio spans of the other arrays (id, from, to; s), recent ones, for a take-over.
     other_audio: VecDeque<(u16, f64, f64)>,
+    /// Position of the last fix, ENU m.
+    last_position: Option<[f64; 3]>,
+    /// Input time of the last take-over, s.
+    last_takeover_t: f64,
     /// Bearings of the other arrays not yet given to the filter (with
     /// [`TrackerConfig::fuse_arrays`]), in arrival order.
     others: VecDeque<Bearing>,
@@ -367,6 +383,8 @@ impl Tracker {
             others: VecDeque::new(),
             takeovers: 0,
             other_audio: VecDeque::new(),
+            last_position: None,
+            last_takeover_t: f64::NEG_INFINITY,
         })
     }
 
@@ -401,7 +419,8 @@ impl Tracker {
                     self.other_audio.pop_front();
                 }
                 self.other_audio.push_back((array_id, from_s, to_s));
-                self.other_audio.retain(|a| a.2 >= keep_from);
+                // (kept `handover_heard_s` longer: a hand-over asks how long it was heard)
+                self.other_audio.retain(|a| a.2 >= keep_from - self.config.handover_heard_s);
             }
             return;
         }
@@ -429,7 +448,7 @@ impl Tracker {
             if !(self.config.fuse_arrays && t.is_finite()) {
                 return Vec::new();
             }
-            if !(self.may_take_over(from, t) && self.take_over(from)) {
+            if !((self.may_take_over(from, t) || self.nearer(from, t)) && self.take_over(from)) {
                 if self.site.arrays.iter().any(|a| a.id == from) {
                     if self.others.len() == OTHERS_KEPT {
                         self.others.pop_front();
@@ -531,6 +550,32 @@ impl Tracker {
         reached >= t - 0.3
     }
 
+    /// Whether `array_id` is much nearer the drone than the tracked array (under
+    /// [`TrackerConfig::handover_ratio`] of its distance from the last fix), has been heard
+    /// for the last [`TrackerConfig::handover_heard_s`] and no take-over happened in the last
+    /// [`TrackerConfig::handover_hold_s`].
+    fn nearer(&self, array_id: u16, t: f64) -> bool {
+        let c = &self.config;
+        let Some(p) = self.last_position else { return false };
+        let Some(other) = self.site.arrays.iter().find(|a| a.id == array_id) else {
+            return false;
+        };
+        let own = &self.site.arrays[self.array_index];
+        let d = |a: &crate::site::ArrayPose| {
+            (0..3).map(|i| (p[i] - a.position[i]).powi(2)).sum::<f64>().sqrt()
+        };
+        if d(other) >= c.handover_ratio * d(own) || t - self.last_takeover_t < c.handover_hold_s {
+            return false;
+        }
+        let heard_from = self
+            .other_audio
+            .iter()
+            .filter(|a| a.0 == array_id)
+            .map(|a| a.1)
+            .fold(f64::INFINITY, f64::min);
+        heard_from <= t - c.handover_heard_s
+    }
+
     /// `array_id` takes over the track from the tracked array, which has gone silent (a dead
     /// link, a reboot): its direction window, motion class and spectra start afresh; the
     /// filter (a world-frame state), the hover calibration and pattern, and the track go on.
@@ -542,7 +587,6 @@ impl Tracker {
         let c = &self.config;
         self.array_index = index;
         self.window = DoaWindow::new(c.doa.clone());
-        self.classifier = MotionClassifier::new(c.motion.clone());
         self.speed = SpeedIntegrator::new(&self.profile);
         self.wake.iter_mut().for_each(WakeSpeed::reset);
         self.split.iter_mut().for_each(WakeSplit::reset);
@@ -557,6 +601,7 @@ impl Tracker {
         self.other_audio.retain(|a| a.0 != array_id);
         self.others.retain(|b| b.array_id != array_id);
         self.hover_run_s = 0.0;
+        self.last_takeover_t = self.latest_input_t;
         self.takeovers = self.takeovers.wrapping_add(1);
         true
     }
@@ -863,6 +908,7 @@ impl Tracker {
             speed_of_sound_mps: DEFAULT_SPEED_OF_SOUND_MPS,
         };
         let est = self.filter.step(&step)?;
+        self.last_position = Some(est.position);
         let pc = &est.position_covariance;
         Some(Fix {
             t,
@@ -946,6 +992,56 @@ mod tests {
         let last = fixes.last().unwrap().position;
         let err = (0..3).map(|i| (last[i] - drone[i]).powi(2)).sum::<f64>().sqrt();
         assert!(err < 0.5, "{err} m off at the end");
+    }
+
+    /// The hand-over (oracle: the rules of [`Tracker::nearer`]): a still drone 4 m from array
+    /// 2 and 17 m from the tracked array 1, both heard all along. Array 2 takes the track once
+    /// it has been heard `handover_heard_s` and stays with it; with `handover_ratio` 0 array 1
+    /// keeps it.
+    #[test]
+    fn a_much_nearer_array_heard_long_enough_takes_the_track_once() {
+        let site = Site {
+            arrays: vec![
+                ArrayPose::new(1, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0),
+                ArrayPose::new(2, [20.0, 0.0, 0.0], 0.0, 0.0, 0.0),
+            ],
+            room: None,
+            sample_rate_hz: None,
+        };
+        let drone = [17.0, 3.0, 2.0];
+        let run = |config: TrackerConfig| {
+            let mut tracker =
+                Tracker::new(site.clone(), Profile::dji_mini_2(), FilterKind::Aim, config).unwrap();
+            tracker.gate_on_audio();
+            let mut taken_at = None;
+            for k in 0..60 {
+                let t = f64::from(k) * 0.17;
+                for id in [1u16, 2] {
+                    let origin = if id == 1 { 0.0 } else { 20.0 };
+                    let (az, zen) = angles_of([drone[0] - origin, drone[1], drone[2]]);
+                    tracker.add_audio(id, t - 0.085, t + 0.085);
+                    tracker.push(Input::Bearing(Bearing {
+                        t,
+                        array_id: id,
+                        azimuth_rad: az,
+                        zenith_rad: zen,
+                        residual: 0.2,
+                        quality: 3.0,
+                    }));
+                }
+                if taken_at.is_none() && tracker.array_id() == 2 {
+                    taken_at = Some(t);
+                }
+            }
+            (tracker.takeovers(), tracker.array_id(), taken_at)
+        };
+        let config = TrackerConfig::default();
+        let (takeovers, id, taken_at) = run(config.clone());
+        assert_eq!((takeovers, id), (1, 2));
+        let t = taken_at.unwrap();
+        assert!(t >= config.handover_heard_s - 0.1 && t < 4.0, "handed over at {t} s");
+        let (takeovers, id, _) = run(TrackerConfig { handover_ratio: 0.0, ..config });
+        assert_eq!((takeovers, id), (0, 1));
     }
 
     /// Classes of the fixes a hovering drone gets while it yaws on the spot: 6 s of hover,
