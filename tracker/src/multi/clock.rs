@@ -981,6 +981,22 @@ mod tests {
         assert!(err.abs() < 100e-6, "{err}");
     }
 
+    /// The site's beacon, arrays, speed of sound and sample rate make the model.
+    #[test]
+    fn a_site_with_a_beacon_makes_the_model() {
+        use crate::site::{Site, SiteSync};
+        let text = "sample_rate_hz = 44100\nspeed_of_sound_mps = 340.0\n[[array]]\nid = 3\nposition = [0.0, 0.0, 0.0]\n[[array]]\nid = 4\nposition = [6.8, 0.0, 0.0]\n[[beacon]]\nid = 1\nposition = [3.4, 0.0, 0.0]\nperiod_s = 2.0\nsequence = \"aim-beacon-v1\"\n";
+        let path = std::path::Path::new("s.toml");
+        let (site, sync) = (Site::parse(text, path).unwrap(), SiteSync::parse(text, path).unwrap());
+        let m = ClockModel::from_site(&site, &sync, ClockConfig::default()).unwrap();
+        assert_eq!((m.config().period_s, m.config().sample_rate_hz), (2.0, 44_100.0));
+        assert_eq!(m.arrays[&3].delay_s, 0.01);
+        assert_eq!(m.arrays[&4].delay_s, 0.01);
+        assert!(
+            ClockModel::from_site(&site, &SiteSync::default(), ClockConfig::default()).is_none()
+        );
+    }
+
     /// The coarse alignment of a board 100 ppm slower than the host with 0–50 ms of link delay
     /// stays within the delay range over an hour.
     #[test]

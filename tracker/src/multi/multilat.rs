@@ -332,13 +332,13 @@ mod tests {
         assert_eq!(fix.data_rank, 3);
         // Eq. 8: the solution lies on every pair's hyperboloid, on the sheet of its sign
         // (also for the pairs not used in the solve).
-        for p in 0..ARRAYS.len() {
-            for q in 0..ARRAYS.len() {
+        for (p, &ap) in ARRAYS.iter().enumerate() {
+            for (q, &aq) in ARRAYS.iter().enumerate() {
                 if p == q {
                     continue;
                 }
-                let rd = dist(SOURCE, ARRAYS[p]) - dist(SOURCE, ARRAYS[q]);
-                let h = Hyperboloid::new(ARRAYS[p], ARRAYS[q], rd).unwrap();
+                let rd = dist(SOURCE, ap) - dist(SOURCE, aq);
+                let h = Hyperboloid::new(ap, aq, rd).unwrap();
                 assert!(h.value(fix.position).abs() < 1e-5, "{p}{q}: {}", h.value(fix.position));
                 assert!(h.on_sheet(fix.position), "{p}{q}");
                 // The mirror sheet is also F = 0, but on the other side: the sign matters.
@@ -349,7 +349,7 @@ mod tests {
                     h.centre[2] - 2.0 * x * h.axis[2] + (fix.position[2] - h.centre[2]),
                 ];
                 assert!(h.value(mirror).abs() < 1e-5 && !h.on_sheet(mirror), "{rho}");
-                let flipped = dist(mirror, ARRAYS[p]) - dist(mirror, ARRAYS[q]);
+                let flipped = dist(mirror, ap) - dist(mirror, aq);
                 assert!((flipped + rd).abs() < 1e-9);
             }
         }

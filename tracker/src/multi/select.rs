@@ -74,7 +74,7 @@ pub fn select_arrays(
             c.azimuth_variance_rad2.is_finite() && c.azimuth_variance_rad2 < max_variance_rad2
         })
         .collect();
-    stable.sort_by(|a, b| a.id.cmp(&b.id));
+    stable.sort_by_key(|c| c.id);
     if stable.len() < 3 {
         let mut ids = stable.clone();
         ids.sort_by(|a, b| a.azimuth_variance_rad2.total_cmp(&b.azimuth_variance_rad2));

@@ -141,9 +141,7 @@ mod tests {
             })
             .collect();
         let t = triangulate(&rays, 2f64.to_radians()).unwrap();
-        for i in 0..3 {
-            assert!((t.position[i] - SOURCE[i]).abs() < 1e-9, "{t:?}");
-        }
+        assert!((Vector3::from(t.position) - Vector3::from(SOURCE)).norm() < 1e-9, "{t:?}");
         assert!(t.rms_distance_m < 1e-9 && t.behind == 0);
     }
 
