@@ -24,6 +24,7 @@
 
 use microfft::Complex32;
 
+use crate::beacon::{self, Detector};
 use crate::bpf::{SpectralPath, ANALYSIS_LEN};
 use crate::doa::{self, Pair};
 use crate::frontend::{self, FrontEnd};
@@ -53,6 +54,7 @@ const MAX_TDM_SLOTS: usize = 16;
 /// microphones after it, or the whole BPF transform. Both uses fit exactly.
 const SCRATCH_LEN: usize = ANALYSIS_LEN;
 const _: () = assert!(MAX_BLOCK_LEN + MAX_MICS * 2 * MAX_BAND_BINS <= SCRATCH_LEN);
+const _: () = assert!(beacon::SCRATCH_LEN <= SCRATCH_LEN);
 
 /// The on-chip processing of one array, in fixed memory. See the module docs for output rates.
 #[derive(Debug, Clone)]
@@ -113,6 +115,9 @@ pub struct Pipeline {
     /// The spectral path's own stamp of its first sample after the last gap; an analysis
     /// window that starts earlier holds samples from before the gap and is dropped.
     spectral_clean_from: u64,
+    /// Beacon detector on microphone 0's input-rate words (48 kHz only).
+    beacon: Detector,
+    beacon_on: bool,
 }
 
 impl Pipeline {
@@ -158,6 +163,8 @@ impl Pipeline {
             gap_stats: GapStats { gaps: 0, frames_lost: 0, outputs_dropped: 0 },
             spectral_skipped: 0,
             spectral_clean_from: 0,
+            beacon: Detector::empty(),
+            beacon_on: false,
         }
     }
 
@@ -200,6 +207,10 @@ impl Pipeline {
         crate::window::hann(&mut self.window[..self.fft_len]);
         self.spectral.configure(config.sample_rate_hz, self.decimation);
         self.id.configure();
+        self.beacon_on = config.sample_rate_hz == beacon::SAMPLE_RATE_HZ;
+        if self.beacon_on {
+            self.beacon.configure();
+        }
         self.reset_stream();
         self.configured = true;
         Ok(())
@@ -249,6 +260,13 @@ impl Pipeline {
             return;
         }
         let slots = self.config.tdm_slots;
+        if self.beacon_on {
+            // Microphone 0's words of this chunk: the first is where the next frame starts.
+            let first = (slots - self.slot) % slots;
+            if let Some(mic0) = words.get(first..) {
+                self.beacon.push(mic0, slots, &mut self.scratch, &mut |b| sink(Output::Beacon(b)));
+            }
+        }
         let n = self.fft_len;
         let d = self.decimation;
         let mut words = words;
@@ -328,6 +346,11 @@ impl Pipeline {
             );
         }
         let next = self.block_start + consumed + partial + lost_frames;
+        if self.beacon_on {
+            // The detector has seen mic 0 of every frame begun so far.
+            debug_assert_eq!(self.beacon.next_index() + lost_frames, next);
+            self.beacon.gap(lost_frames);
+        }
         // The partial block and a DoA average in progress would span the gap.
         if self.fill > 0 || open || partial > 0 || self.averaged > 0 {
             self.gap_stats.outputs_dropped = self.gap_stats.outputs_dropped.wrapping_add(1);
@@ -570,6 +593,39 @@ mod tests {
     fn memory_budget() {
         let size = core::mem::size_of::<Pipeline>();
         assert!(size <= 128 * 1024, "Pipeline is {size} bytes");
+    }
+
+    #[test]
+    fn beacon_on_mic_0_is_reported_on_the_input_clock() {
+        // Oracle: the beacon waveform placed at a known real start on slot 0 (other slots a
+        // quiet tone); pushed in odd chunks that split frames, with a gap before it.
+        let config = Config::new(Geometry::respeaker_6mic(), 48_000);
+        let mut p = Pipeline::new(&config).unwrap();
+        let (start, frames, slots) = (20_000.37f64, 40_000usize, config.tdm_slots);
+        let mut words = vec![0i32; frames * slots];
+        for (n, frame) in words.chunks_exact_mut(slots).enumerate() {
+            let b = 0.01 * beacon::waveform_at(n as f64 + 651.0 - start);
+            frame[0] = ((b * 8_388_608.0).round() as i32) << 8;
+            for (mic, w) in frame[1..6].iter_mut().enumerate() {
+                let t = libm::sin(0.05 * (n + mic) as f64);
+                *w = ((0.001 * t * 8_388_608.0) as i32) << 8;
+            }
+        }
+        let mut found = Vec::new();
+        let mut sink = |o: Output| {
+            if let Output::Beacon(b) = o {
+                found.push(b)
+            }
+        };
+        p.push(&words[..1003], &mut sink);
+        // Frame 125 was begun (its index is used); frame 126 is board sample 126 + 651.
+        p.gap(651);
+        for chunk in words[126 * slots..].chunks(997) {
+            p.push(chunk, &mut sink);
+        }
+        assert_eq!(found.len(), 1, "{found:?}");
+        let got = found[0].sample_index as f64 + f64::from(found[0].fraction);
+        assert!((got - start).abs() < 0.02, "{got} vs {start}");
     }
 
     #[test]

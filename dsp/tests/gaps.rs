@@ -86,6 +86,7 @@ fn a_gap_drops_the_outputs_spanning_it_counts_them_and_keeps_the_clock() {
         Output::Doa(d) => end(d.sample_index, d.span_samples) <= gap_at as u64,
         Output::Peaks(k) => end(k.sample_index, k.span_samples) <= gap_at as u64,
         Output::Mfcc(f) => end(f.sample_index, f.span_samples) <= gap_at as u64,
+        Output::Beacon(b) => end(b.sample_index, aim_dsp::beacon::LEN as u32) <= gap_at as u64,
         Output::Health(_) => false,
     };
     let ref_before: Vec<_> = ref_out.iter().filter(before).collect();
@@ -100,6 +101,7 @@ fn a_gap_drops_the_outputs_spanning_it_counts_them_and_keeps_the_clock() {
             Output::Doa(d) => (d.sample_index, end(d.sample_index, d.span_samples)),
             Output::Peaks(k) => (k.sample_index, end(k.sample_index, k.span_samples)),
             Output::Mfcc(f) => (f.sample_index, end(f.sample_index, f.span_samples)),
+            Output::Beacon(b) => (b.sample_index, end(b.sample_index, aim_dsp::beacon::LEN as u32)),
             Output::Health(_) => continue,
         };
         assert!(stop <= gap_at as u64 || start >= resume, "{o:?} spans the gap");

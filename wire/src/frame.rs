@@ -38,6 +38,8 @@ pub enum Kind {
     Health = 3,
     /// [`Mfcc`]: drone-identification features (log-mel, MFCC, BPF comb) of one analysis window.
     Mfcc = 4,
+    /// [`Beacon`]: one arrival of the synchronisation beacon (aim-dsp `beacon`).
+    Beacon = 5,
 }
 
 /// Kind bytes reserved for planned frames. Never reuse them for anything else; an old host
@@ -45,7 +47,7 @@ pub enum Kind {
 pub mod reserved {
     /// MFCC features (`ALGORITHMS.md` §10): now [`super::Kind::Mfcc`], kept for the record.
     pub const MFCC: u8 = 4;
-    /// Ultrasonic beacon detections in 16–20 kHz.
+    /// Beacon arrivals in 16–20 kHz: now [`super::Kind::Beacon`], kept for the record.
     pub const BEACON: u8 = 5;
     /// Band-limited audio snippet for inter-array delays (`ALGORITHMS.md` §10).
     pub const SNIPPET: u8 = 6;
@@ -53,7 +55,8 @@ pub mod reserved {
 
 impl Kind {
     /// Every kind this version knows, in discriminant order.
-    pub const ALL: [Kind; 5] = [Kind::Hello, Kind::Doa, Kind::Peaks, Kind::Health, Kind::Mfcc];
+    pub const ALL: [Kind; 6] =
+        [Kind::Hello, Kind::Doa, Kind::Peaks, Kind::Health, Kind::Mfcc, Kind::Beacon];
 
     /// The kind of a kind byte, or `None` if this version does not know it.
     pub const fn from_byte(byte: u8) -> Option<Kind> {
@@ -63,6 +66,7 @@ impl Kind {
             2 => Some(Kind::Peaks),
             3 => Some(Kind::Health),
             4 => Some(Kind::Mfcc),
+            5 => Some(Kind::Beacon),
             _ => None,
         }
     }
@@ -80,6 +84,7 @@ impl Kind {
             Kind::Peaks => "peaks",
             Kind::Health => "health",
             Kind::Mfcc => "mfcc",
+            Kind::Beacon => "beacon",
         }
     }
 
@@ -114,6 +119,8 @@ impl Kind {
             Kind::Health => 5 + 5 + 3 + 1 + 5 * 3 + 1 + 9 * 5 + 1 + MAX_MICS * 2 * 3,
             // span u32 5 + (24 log-mel + 13 MFCC + 9 harmonic) x i16 3
             Kind::Mfcc => 5 + (MFCC_MEL_BANDS + MFCC_COEFFS + MFCC_HARMONIC) * 3,
+            // fraction u16 3 + quality 1 + level i16 3
+            Kind::Beacon => 3 + 1 + 3,
         }
     }
 
@@ -163,6 +170,8 @@ pub enum Body {
     Health(Health),
     /// See [`Mfcc`].
     Mfcc(Mfcc),
+    /// See [`Beacon`].
+    Beacon(Beacon),
 }
 
 impl Body {
@@ -174,6 +183,7 @@ impl Body {
             Body::Peaks(_) => Kind::Peaks,
             Body::Health(_) => Kind::Health,
             Body::Mfcc(_) => Kind::Mfcc,
+            Body::Beacon(_) => Kind::Beacon,
         }
     }
 }
@@ -893,5 +903,53 @@ impl Mfcc {
             *o = f32::from(q) * if i == 0 { 0.001 } else { 0.01 };
         }
         v
+    }
+}
+
+/// One arrival of the synchronisation beacon (aim-dsp `beacon`, sequence `aim-beacon-v1`), at
+/// most one per emission (default one per second). The header's sample index is the integer
+/// part of the arrival: the input-clock sample (48 kHz) at which the emission's first sample
+/// reached the array's microphone 0 (slot 0; its position is in [`Hello`] and the site file);
+/// the arrival is `sample_index + fraction / 65536` samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Beacon {
+    /// Sub-sample part of the arrival, units of 1/65536 sample (resolution 0.3 ns at 48 kHz).
+    pub fraction: u16,
+    /// Normalised correlation of the received window with the beacon template, units of 1/255
+    /// (0–1; the chip reports only ≥ 0.4).
+    pub quality: u8,
+    /// Received peak amplitude of the beacon at microphone 0, units of 0.01 dB re full scale.
+    pub level_cdb: i16,
+}
+
+impl Beacon {
+    /// Quantises a fraction of a sample in [0, 1), a quality in [0, 1] and a level in dBFS.
+    pub fn new(fraction: f32, quality: f32, level_db: f32) -> Self {
+        Beacon {
+            // Rounding may reach 65536: saturate just below 1.
+            fraction: fixed::to_u32(fraction, 65_536.0).min(u32::from(u16::MAX)) as u16,
+            quality: fixed::to_u8(quality, 255.0),
+            level_cdb: fixed::to_i16(level_db, 100.0),
+        }
+    }
+
+    /// The sub-sample part of the arrival, samples, in [0, 1).
+    pub fn fraction_samples(&self) -> f64 {
+        f64::from(self.fraction) / 65_536.0
+    }
+
+    /// The arrival in samples of the board's input clock, given the header's sample index.
+    pub fn arrival_samples(&self, sample_index: u64) -> f64 {
+        sample_index as f64 + self.fraction_samples()
+    }
+
+    /// Quality in [0, 1].
+    pub fn quality_f32(&self) -> f32 {
+        f32::from(self.quality) / 255.0
+    }
+
+    /// Received level, dB re full scale.
+    pub fn level_db(&self) -> f32 {
+        f32::from(self.level_cdb) / 100.0
     }
 }

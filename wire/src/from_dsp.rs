@@ -14,7 +14,7 @@
 //! ```
 
 use crate::frame::{
-    Body, Detection, Doa, Health, Hello, Mfcc, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS,
+    Beacon, Body, Detection, Doa, Health, Hello, Mfcc, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS,
     MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS,
 };
 
@@ -161,6 +161,9 @@ pub fn body(output: &aim_dsp::Output, firmware: &FirmwareCounters) -> (u64, Body
         aim_dsp::Output::Peaks(p) => (p.sample_index, Body::Peaks(peaks(p))),
         aim_dsp::Output::Health(h) => (h.sample_index, Body::Health(health(h, firmware))),
         aim_dsp::Output::Mfcc(f) => (f.sample_index, Body::Mfcc(mfcc(f))),
+        aim_dsp::Output::Beacon(b) => {
+            (b.sample_index, Body::Beacon(Beacon::new(b.fraction, b.quality, b.level_db)))
+        }
     }
 }
 
@@ -245,6 +248,23 @@ mod tests {
         assert_eq!(m.harmonic, [392, 1713, 0, 0, 0, 0, 0, 0, -3333]);
         assert!((m.harmonic_values()[0] - 0.392).abs() < 1e-6);
         assert!((m.mfcc_db(0) + 391.3).abs() < 1e-3);
+    }
+
+    #[test]
+    fn beacon_fields_map_with_their_units() {
+        let b = aim_dsp::beacon::Beacon {
+            sample_index: 57_912,
+            fraction: 0.602_1,
+            quality: 0.93,
+            level_db: -71.254,
+        };
+        let (index, body) = body(&aim_dsp::Output::Beacon(b), &FirmwareCounters::default());
+        let Body::Beacon(w) = body else { panic!("{body:?}") };
+        assert_eq!(index, 57_912);
+        assert_eq!((w.fraction, w.quality, w.level_cdb), (39_459, 237, -7125));
+        assert!((w.arrival_samples(index) - 57_912.602_1).abs() < 1.0 / 65_536.0);
+        // A fraction that rounds up to a whole sample saturates below it.
+        assert_eq!(Beacon::new(0.999_999, 1.0, 0.0).fraction, u16::MAX);
     }
 
     #[test]

@@ -19,14 +19,15 @@ fn discriminants_are_pinned() {
     assert_eq!(Kind::Health as u8, 3);
     assert_eq!(Kind::Mfcc as u8, 4);
     assert_eq!(reserved::MFCC, Kind::Mfcc as u8);
-    assert_eq!(reserved::BEACON, 5);
+    assert_eq!(Kind::Beacon as u8, 5);
+    assert_eq!(reserved::BEACON, Kind::Beacon as u8);
     assert_eq!(reserved::SNIPPET, 6);
     assert_eq!(aim_wire::MAGIC, 0xA1);
     assert_eq!(PROTOCOL_VERSION, 1);
     for kind in Kind::ALL {
         assert_eq!(Kind::from_byte(kind.byte()), Some(kind));
     }
-    for byte in [reserved::BEACON, reserved::SNIPPET, 7, 255] {
+    for byte in [reserved::SNIPPET, 7, 255] {
         assert_eq!(Kind::from_byte(byte), None);
     }
     // The kind byte sits at offset 2 of every raw frame.
@@ -45,6 +46,7 @@ fn max_encoded_size_per_kind() {
         (Kind::Peaks, 73, 76),
         (Kind::Health, 144, 147),
         (Kind::Mfcc, 163, 166),
+        (Kind::Beacon, 27, 30),
     ];
     for (kind, raw_len, wire_len) in expected {
         let frame = worst_case(kind);
@@ -463,6 +465,7 @@ fn bodies_report_their_kind() {
                 | (Body::Peaks(_), Kind::Peaks)
                 | (Body::Health(_), Kind::Health)
                 | (Body::Mfcc(_), Kind::Mfcc)
+                | (Body::Beacon(_), Kind::Beacon)
         );
         assert!(matches, "{kind:?}");
     }

@@ -19,7 +19,7 @@ const HELLO_PERIOD_S: f64 = 5.0;
 const BUDGET: f64 = 0.5;
 
 /// Frames per second of each kind for a pipeline configuration.
-fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 5] {
+fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 6] {
     let block_s = config.block_len as f64 / f64::from(config.sample_rate_hz);
     let peaks_hop_s =
         aim_dsp::bpf::ANALYSIS_HOP as f64 / f64::from(aim_dsp::bpf::DECIMATED_RATE_HZ);
@@ -36,6 +36,8 @@ fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 5] {
                 0.0
             }
         }),
+        // One emission per second (the site's default period).
+        (Kind::Beacon, if config.sample_rate_hz == 48_000 { 1.0 } else { 0.0 }),
     ]
 }
 
@@ -80,7 +82,7 @@ fn eight_mics_at_default_rates_use_at_most_half_the_link() {
     let utilisation = load(&config, "aim-dsp defaults, 48 kHz, 8 mics, worst-case sizes");
     assert!(utilisation <= BUDGET, "{:.1} % of the link", 100.0 * utilisation);
     // Physical sanity of the rates read from aim-dsp: a DoA per few blocks, ~1 Health/s.
-    let [_, (_, doa), (_, peaks), (_, health), (_, mfcc)] = rates(&config);
+    let [_, (_, doa), (_, peaks), (_, health), (_, mfcc), _] = rates(&config);
     assert!((1.0..=47.0).contains(&doa), "DoA rate {doa}");
     assert!(mfcc > 0.0 && mfcc <= peaks, "Mfcc rate {mfcc}: one per analysis at most");
     assert!((0.5..=24.0).contains(&peaks), "Peaks rate {peaks}");

@@ -134,6 +134,12 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                     .collect::<Vec<_>>(),
             })
         }
+        Body::Beacon(p) => json!({
+            "arrival_samples": p.arrival_samples(h.sample_index),
+            "fraction": p.fraction_samples(),
+            "quality": round(f64::from(p.quality_f32()), 4),
+            "level_db": f64::from(p.level_cdb) / 100.0,
+        }),
         // A kind added to aim-wire but not yet here: header only.
         #[allow(unreachable_patterns)]
         _ => json!({}),

@@ -103,6 +103,11 @@ pub fn sample_frames() -> Vec<Frame> {
             }),
         },
         Frame { header: header(4, 3_072_000), body: Body::Mfcc(sample_mfcc()) },
+        // A 60 dB beacon at 10 m, heard 1.2 s after start: arrival 57 912.6021 samples.
+        Frame {
+            header: header(5, 57_912),
+            body: Body::Beacon(aim_wire::Beacon::new(0.6021, 0.93, -71.25)),
+        },
     ]
 }
 
@@ -193,6 +198,11 @@ pub fn worst_case(kind: Kind) -> Frame {
             mfcc_ddb: [i16::MIN; aim_wire::MFCC_COEFFS],
             harmonic: [i16::MIN; aim_wire::MFCC_HARMONIC],
         }),
+        Kind::Beacon => Body::Beacon(aim_wire::Beacon {
+            fraction: u16::MAX,
+            quality: u8::MAX,
+            level_cdb: i16::MIN,
+        }),
         _ => unreachable!("a kind without a worst case: add it here"),
     };
     Frame { header, body }
@@ -202,7 +212,7 @@ pub fn worst_case(kind: Kind) -> Frame {
 pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
     let header = Header { array_id, seq, sample_index: rng.u64() >> rng.below(64) };
     let small = |rng: &mut Rng| (rng.u64() >> rng.below(64)) as u32;
-    let body = match rng.below(5) {
+    let body = match rng.below(6) {
         0 => Body::Hello(Hello {
             firmware_version: [rng.byte(), rng.byte(), rng.byte()],
             sample_rate_hz: small(rng),
@@ -240,6 +250,11 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
                 .collect(),
             detection: [Detection::Unstated, Detection::NoRotor, Detection::Rotor][rng.below(3)],
             quality: (0..rng.below(MAX_PEAKS + 1)).map(|_| rng.byte()).collect(),
+        }),
+        4 => Body::Beacon(aim_wire::Beacon {
+            fraction: rng.u64() as u16,
+            quality: rng.byte(),
+            level_cdb: rng.u64() as i16,
         }),
         3 => Body::Mfcc(aim_wire::Mfcc {
             span_samples: small(rng),
