@@ -22,6 +22,9 @@ use crate::MAX_MICS;
 pub const MAX_BLOCK_SHIFT: u32 = 16;
 /// Magnitude at or above which a word counts as clipped (24-bit full scale, left-justified).
 pub const CLIP_LEVEL: i32 = 0x7FFF_FF00 - 0x100;
+/// Lower bound of `x ^ (x >> 31)` over clipped words `x` (|x| ≥ [`CLIP_LEVEL`]): an OR of
+/// these values below it proves that no word was clipped.
+const CLIP_SCREEN: u32 = (CLIP_LEVEL - 1) as u32;
 
 /// Running-mean length exponent k for a sample rate: the DC corner sits near 5–8 Hz.
 pub fn dc_shift(sample_rate_hz: u32) -> u32 {
@@ -42,28 +45,30 @@ pub fn spatial_decimation(sample_rate_hz: u32) -> usize {
     }
 }
 
-/// History of one microphone's half-band decimator (Q25 samples). With the newest input pair
-/// (x(n−1), x(n)): `y(n) = 16·x(n−3) + 9·(x(n−2) + x(n−4)) − (x(n) + x(n−6))`.
+/// State of one microphone's half-band decimator (Q25 samples). With the newest input pair
+/// (x(n−1), x(n)): `y(n) = 16·x(n−3) + 9·(x(n−2) + x(n−4)) − (x(n) + x(n−6))`, computed as
+/// `partial − x(n)` with `partial` formed when the previous pair completed (the same integer:
+/// every term and sum stays below 2^31 in magnitude, 36 · 2^25 at most).
 #[derive(Debug, Clone, Copy)]
 struct HalfBand {
-    /// x(n−3): the first sample of the previous pair.
-    odd: i32,
-    /// x(n−2), x(n−4), x(n−6): the second samples of the last three pairs, newest first.
-    even: [i32; 3],
+    /// 16·x(n−3) + 9·(x(n−2) + x(n−4)) − x(n−6) for the pair being completed.
+    partial: i32,
+    /// x(n−2), x(n−4): the second samples of the last two pairs, newest first.
+    even: [i32; 2],
     /// The first sample of the pair being completed.
     pending: i32,
 }
 
 impl HalfBand {
-    const ZERO: Self = Self { odd: 0, even: [0; 3], pending: 0 };
+    const ZERO: Self = Self { partial: 0, even: [0; 2], pending: 0 };
 }
 
-/// The half-band output for the pair (`first`, `second`), updating the history in registers.
+/// The half-band output for the pair (`first`, `second`), updating the state in registers.
 #[inline(always)]
-fn half_band(odd: &mut i32, e: &mut [i32; 3], first: i32, second: i32) -> i32 {
-    let y = 16 * *odd + 9 * (e[0] + e[1]) - (second + e[2]);
-    *e = [second, e[0], e[1]];
-    *odd = first;
+fn half_band(partial: &mut i32, e: &mut [i32; 2], first: i32, second: i32) -> i32 {
+    let y = *partial - second;
+    *partial = 16 * first + 9 * (second + e[0]) - e[1];
+    *e = [second, e[0]];
     y
 }
 
@@ -152,7 +157,7 @@ impl FrontEnd {
             }
             let h = &mut self.half_band[mic];
             if second {
-                let y = half_band(&mut h.odd, &mut h.even, h.pending, x >> 6);
+                let y = half_band(&mut h.partial, &mut h.even, h.pending, x >> 6);
                 let y = Self::step(&mut self.dc[mic], k1, y);
                 *peak = (*peak).max(y.unsigned_abs());
                 out(mic, y);
@@ -164,10 +169,35 @@ impl FrontEnd {
         second
     }
 
+    /// Counts the clipped words of microphones `0..mics` in whole TDM frames (`frames`, `slots`
+    /// words each) into [`Self::clipped`]. [`Self::decimate_frames`] leaves this to the caller,
+    /// once per run of frames.
+    ///
+    /// One contiguous pass ORs every word's ones'-complement magnitude `x ^ (x >> 31)`: below
+    /// [`CLIP_SCREEN`] no word was clipped (2 instructions per word, where counting takes 4).
+    /// Only otherwise (a word near full scale, or a loud run whose magnitudes happen to OR up to
+    /// it) are the words counted one by one.
+    pub fn count_clipped(&mut self, frames: &[i32], slots: usize, mics: usize) {
+        let magnitude = |x: i32| (x ^ (x >> 31)) as u32;
+        let (eights, rest) = frames.as_chunks::<8>();
+        let screen = eights.iter().fold(0u32, |acc, w| {
+            let a = (magnitude(w[0]) | magnitude(w[1])) | (magnitude(w[2]) | magnitude(w[3]));
+            let b = (magnitude(w[4]) | magnitude(w[5])) | (magnitude(w[6]) | magnitude(w[7]));
+            acc | a | b
+        });
+        let screen = rest.iter().fold(screen, |acc, &x| acc | magnitude(x));
+        if screen < CLIP_SCREEN || slots == 0 {
+            return;
+        }
+        let words = frames.chunks_exact(slots).flat_map(|f| &f[..mics.min(slots)]);
+        let clipped = words.filter(|&&x| x >= CLIP_LEVEL || x <= -CLIP_LEVEL).count();
+        self.clipped = self.clipped.saturating_add(clipped as u32);
+    }
+
     /// De-interleaves microphone `mic` from an even number of whole TDM frames (`frames`,
     /// `slots` words each, starting a half-band pair) into `out` (one sample per two frames),
-    /// decimating and removing DC; counts clipped words and raises `peak` to the largest
-    /// absolute output.
+    /// decimating and removing DC; raises `peak` to the largest absolute output. Clipping is
+    /// not counted here: see [`Self::count_clipped`].
     pub fn decimate_frames(
         &mut self,
         mic: usize,
@@ -176,25 +206,46 @@ impl FrontEnd {
         out: &mut [i32],
         peak: &mut u32,
     ) {
-        let k1 = DECIMATED_DC_SHIFT - 1;
         if mic >= slots || mic >= MAX_MICS {
             return;
         }
+        // The firmware's layout (8-slot frames) with a constant stride: the words are addressed
+        // with immediate offsets.
+        if slots == 8 {
+            let (pairs, _) = frames.as_chunks::<16>();
+            self.decimate_mic(mic, pairs.iter().map(|p| (p[mic], p[8 + mic])), out, peak);
+        } else {
+            let pairs = frames.chunks_exact(2 * slots);
+            self.decimate_mic(mic, pairs.map(|p| (p[mic], p[slots + mic])), out, peak);
+        }
+    }
+
+    /// The decimation loop of [`Self::decimate_frames`] for one microphone, on its half-band
+    /// input pairs (x(n−1), x(n)); one output per pair and `out` sample.
+    #[inline(always)]
+    fn decimate_mic(
+        &mut self,
+        mic: usize,
+        pairs: impl Iterator<Item = (i32, i32)>,
+        out: &mut [i32],
+        peak: &mut u32,
+    ) {
+        let k1 = DECIMATED_DC_SHIFT - 1;
         let mut dc = self.dc[mic];
-        let HalfBand { mut odd, mut even, .. } = self.half_band[mic];
-        let (mut p, mut clipped) = (*peak, 0u32);
-        for (o, pair) in out.iter_mut().zip(frames.chunks_exact(2 * slots)) {
-            let (a, b) = (pair[mic], pair[slots + mic]);
-            clipped += u32::from(a >= CLIP_LEVEL || a <= -CLIP_LEVEL);
-            clipped += u32::from(b >= CLIP_LEVEL || b <= -CLIP_LEVEL);
-            let y = Self::step(&mut dc, k1, half_band(&mut odd, &mut even, a >> 6, b >> 6));
-            p = p.max(y.unsigned_abs());
+        let HalfBand { mut partial, mut even, .. } = self.half_band[mic];
+        // The largest |y| is tracked as the largest zigzag code `2|y| − (y < 0)` (two
+        // instructions, where `unsigned_abs` takes three or four): the same order on |y|.
+        let mut z = zigzag_of_abs(*peak);
+        for (o, (a, b)) in out.iter_mut().zip(pairs) {
+            let y = half_band(&mut partial, &mut even, a >> 6, b >> 6);
+            let y = Self::step(&mut dc, k1, y);
+            z = z.max(((y << 1) ^ (y >> 31)) as u32);
             *o = y;
         }
+        let p = (z >> 1) + (z & 1);
         self.dc[mic] = dc;
-        self.half_band[mic].odd = odd;
+        self.half_band[mic].partial = partial;
         self.half_band[mic].even = even;
-        self.clipped = self.clipped.saturating_add(clipped);
         *peak = p;
     }
 
@@ -271,6 +322,14 @@ impl FrontEnd {
     }
 }
 
+/// The zigzag code `2|y| − (y < 0)` of the largest of the magnitudes `peak` (0 for 0): its
+/// `(z >> 1) + (z & 1)` is `peak` again, for every `peak` up to 2^31.
+#[inline(always)]
+fn zigzag_of_abs(peak: u32) -> u32 {
+    // A positive y = peak codes as 2·peak; peak = 2^31 (only −2^31) as 2^32 − 1.
+    peak.wrapping_mul(2).wrapping_sub(u32::from(peak == 1 << 31))
+}
+
 /// Block shift for the largest absolute Q31 sample of a block: the left shift that puts the
 /// peak just below full scale, at most [`MAX_BLOCK_SHIFT`].
 ///
@@ -301,6 +360,27 @@ pub fn to_q15(q31: i32, shift: u32) -> i16 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn clip_screen_and_zigzag_peak_are_exact_at_the_edges() {
+        // Every clipped word's ones'-complement magnitude reaches the screen; the largest
+        // unclipped ones stay below it.
+        for x in [CLIP_LEVEL, -CLIP_LEVEL, i32::MAX, i32::MIN, i32::MIN + 1, -CLIP_LEVEL - 1] {
+            assert!((x ^ (x >> 31)) as u32 >= CLIP_SCREEN, "{x:#x}");
+        }
+        for x in [CLIP_LEVEL - 2, -(CLIP_LEVEL - 2), 0, -1] {
+            assert!(((x ^ (x >> 31)) as u32) < CLIP_SCREEN, "{x:#x}");
+        }
+        // The zigzag code orders |y| and decodes to it, from either a sample or a peak.
+        let zigzag = |y: i32| ((y << 1) ^ (y >> 31)) as u32;
+        let decode = |z: u32| (z >> 1) + (z & 1);
+        for y in [0, 1, -1, 2, -2, 0x4000_0000, -0x4000_0000, i32::MAX, i32::MIN, i32::MIN + 1] {
+            assert_eq!(decode(zigzag(y)), y.unsigned_abs(), "{y:#x}");
+            assert_eq!(decode(zigzag_of_abs(y.unsigned_abs())), y.unsigned_abs(), "{y:#x}");
+            assert!(zigzag(y) <= zigzag_of_abs(y.unsigned_abs()), "{y:#x}");
+            assert!(zigzag(-y.saturating_abs()) <= zigzag(y.saturating_abs()), "{y:#x}");
+        }
+    }
 
     #[test]
     fn q15_round_trip_keeps_relative_level() {
