@@ -76,6 +76,43 @@ fn half_band(partial: &mut i32, e: &mut [i32; 2], first: i32, second: i32) -> i3
 /// a constant so the decimating loops keep it out of a register.
 const DECIMATED_DC_SHIFT: u32 = 9;
 
+/// One microphone's decimating front end in registers: half-band, DC removal, peak.
+struct Lane {
+    partial: i32,
+    even: [i32; 2],
+    dc: i32,
+    /// The largest zigzag code `2|y| − (y < 0)` of the outputs (and of the peak before):
+    /// two instructions per output where `unsigned_abs` takes three or four, the same order
+    /// on |y|.
+    z: u32,
+}
+
+impl Lane {
+    #[inline(always)]
+    fn load(front: &FrontEnd, mic: usize, peak: u32) -> Self {
+        let HalfBand { partial, even, .. } = front.half_band[mic];
+        Self { partial, even, dc: front.dc[mic], z: zigzag_of_abs(peak) }
+    }
+
+    /// The output of the pair (`a`, `b`) of TDM words.
+    #[inline(always)]
+    fn push(&mut self, a: i32, b: i32) -> i32 {
+        let y = half_band(&mut self.partial, &mut self.even, a >> 6, b >> 6);
+        let y = FrontEnd::step(&mut self.dc, DECIMATED_DC_SHIFT - 1, y);
+        self.z = self.z.max(((y << 1) ^ (y >> 31)) as u32);
+        y
+    }
+
+    /// Writes the state back; returns the peak.
+    #[inline(always)]
+    fn store(self, front: &mut FrontEnd, mic: usize) -> u32 {
+        front.dc[mic] = self.dc;
+        front.half_band[mic].partial = self.partial;
+        front.half_band[mic].even = self.even;
+        (self.z >> 1) + (self.z & 1)
+    }
+}
+
 /// Per-microphone DC removal (and spatial decimation) state and the clip counter.
 ///
 /// The DC estimate is kept in Q31 and updated as `dc += (x/2 − dc/2) >> (k − 1)`: all in 32 bits
@@ -209,44 +246,27 @@ impl FrontEnd {
         if mic >= slots || mic >= MAX_MICS {
             return;
         }
-        // The firmware's layout (8-slot frames) with a constant stride: the words are addressed
-        // with immediate offsets.
+        let mut lane = Lane::load(self, mic, *peak);
         if slots == 8 {
-            let (pairs, _) = frames.as_chunks::<16>();
-            self.decimate_mic(mic, pairs.iter().map(|p| (p[mic], p[8 + mic])), out, peak);
+            // The firmware's layout (8-slot frames): constant offsets, two outputs per step
+            // (after two pairs the half-band state is all new values: no register moves).
+            let n = out.len().min(frames.len() / 16);
+            let (out, _) = out.split_at_mut(n);
+            let (quads, _) = frames.as_chunks::<32>();
+            let (twos, tail) = out.as_chunks_mut::<2>();
+            for (o, w) in twos.iter_mut().zip(quads) {
+                o[0] = lane.push(w[mic], w[8 + mic]);
+                o[1] = lane.push(w[16 + mic], w[24 + mic]);
+            }
+            if let ([o], Some(w)) = (tail, frames.get((n.max(1) - 1) * 16..)) {
+                *o = lane.push(w[mic], w[8 + mic]);
+            }
         } else {
-            let pairs = frames.chunks_exact(2 * slots);
-            self.decimate_mic(mic, pairs.map(|p| (p[mic], p[slots + mic])), out, peak);
+            for (o, p) in out.iter_mut().zip(frames.chunks_exact(2 * slots)) {
+                *o = lane.push(p[mic], p[slots + mic]);
+            }
         }
-    }
-
-    /// The decimation loop of [`Self::decimate_frames`] for one microphone, on its half-band
-    /// input pairs (x(n−1), x(n)); one output per pair and `out` sample.
-    #[inline(always)]
-    fn decimate_mic(
-        &mut self,
-        mic: usize,
-        pairs: impl Iterator<Item = (i32, i32)>,
-        out: &mut [i32],
-        peak: &mut u32,
-    ) {
-        let k1 = DECIMATED_DC_SHIFT - 1;
-        let mut dc = self.dc[mic];
-        let HalfBand { mut partial, mut even, .. } = self.half_band[mic];
-        // The largest |y| is tracked as the largest zigzag code `2|y| − (y < 0)` (two
-        // instructions, where `unsigned_abs` takes three or four): the same order on |y|.
-        let mut z = zigzag_of_abs(*peak);
-        for (o, (a, b)) in out.iter_mut().zip(pairs) {
-            let y = half_band(&mut partial, &mut even, a >> 6, b >> 6);
-            let y = Self::step(&mut dc, k1, y);
-            z = z.max(((y << 1) ^ (y >> 31)) as u32);
-            *o = y;
-        }
-        let p = (z >> 1) + (z & 1);
-        self.dc[mic] = dc;
-        self.half_band[mic].partial = partial;
-        self.half_band[mic].even = even;
-        *peak = p;
+        *peak = lane.store(self, mic);
     }
 
     #[inline(always)]

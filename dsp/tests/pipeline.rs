@@ -218,9 +218,16 @@ fn whole_frame_runs_count_clipping_and_peaks_like_the_frame_by_frame_path() {
     for w in &words {
         single.push(core::slice::from_ref(w), &mut |o| b.push(o));
     }
+    // Runs of an odd number of frame pairs (7 frames per push: 3 pairs, then a split pair).
+    let mut odd = Pipeline::new(&config).unwrap();
+    let mut c = Vec::new();
+    for chunk in words.chunks(7 * 8) {
+        odd.push(chunk, &mut |o| c.push(o));
+    }
     let health: Vec<_> =
         a.iter().filter_map(|o| if let Output::Health(h) = o { Some(*h) } else { None }).collect();
     assert_eq!(health.len(), 1);
     assert!(health[0].clipped_samples > 100, "{:?}", health[0]);
     assert_eq!(a, b);
+    assert_eq!(c, b);
 }
