@@ -13,9 +13,10 @@ use crate::filter::{new_filter, Filter, FilterKind, Step};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
-use crate::observation::{Bearing, BpfPeak, Input, Spectrum};
+use crate::multi::clock::{ArrayClock, BeaconArrival, ClockConfig, ClockModel};
+use crate::observation::{BeaconHeard, Bearing, BpfPeak, Input, Spectrum};
 use crate::profile::Profile;
-use crate::site::Site;
+use crate::site::{Site, SiteSync};
 use crate::wake::{HoverPattern, WakeConfig, WakeSpeed, WakeSplit};
 
 /// Standard deviation given to the integrated horizontal speed while the wake cue of a leg
@@ -297,6 +298,11 @@ pub struct Tracker {
     last_position: Option<[f64; 3]>,
     /// Input time of the last take-over, s.
     last_takeover_t: f64,
+    /// The arrays' clocks from the site's beacon ([`Tracker::with_sync`]), if it has one.
+    clock: Option<ClockModel>,
+    /// With [`Tracker::keep_clock_history`]: every array's clock after each beacon arrival
+    /// (the arrival's time, s; the clocks).
+    clock_history: Option<Vec<(f64, Vec<ArrayClock>)>>,
     /// Bearings of the other arrays not yet given to the filter (with
     /// [`TrackerConfig::fuse_arrays`]), in arrival order.
     others: VecDeque<Bearing>,
@@ -385,6 +391,8 @@ impl Tracker {
             other_audio: VecDeque::new(),
             last_position: None,
             last_takeover_t: f64::NEG_INFINITY,
+            clock: None,
+            clock_history: None,
         })
     }
 
@@ -437,10 +445,11 @@ impl Tracker {
     /// heard takes over the track; otherwise other arrays' inputs are dropped.
     pub fn push(&mut self, input: Input) -> Vec<Fix> {
         let t = input.t();
-        let from = match &input {
-            Input::Bearing(b) => b.array_id,
-            Input::Spectrum(s) => s.array_id,
-        };
+        let from = input.array_id();
+        if let Input::Beacon(b) = &input {
+            self.hear_beacon(b);
+            return Vec::new();
+        }
         if from != self.array_id() {
             // Another array's: with fusion, a bearing for the filter, or the take-over (then
             // it is the tracked array's from here on).
@@ -476,6 +485,7 @@ impl Tracker {
         match input {
             Input::Bearing(b) => self.window.push(b),
             Input::Spectrum(s) => self.add_spectrum(&s),
+            Input::Beacon(_) => {}
         }
         fixes
     }
@@ -604,6 +614,47 @@ impl Tracker {
         self.last_takeover_t = self.latest_input_t;
         self.takeovers = self.takeovers.wrapping_add(1);
         true
+    }
+
+    /// The tracker with the clock model of the site's first beacon (`sync`: the site file's
+    /// `[[beacon]]` tables), if it names one: every array's BEACON frames then solve its
+    /// clock ([`crate::multi::clock`]).
+    pub fn with_sync(mut self, sync: &SiteSync) -> Self {
+        self.clock = ClockModel::from_site(&self.site, sync, ClockConfig::default());
+        self
+    }
+
+    /// One beacon arrival to the clock model (none without a beacon in the site); an arrival
+    /// the model cannot use is counted there.
+    fn hear_beacon(&mut self, b: &BeaconHeard) {
+        let Some(clock) = self.clock.as_mut() else { return };
+        let Ok(array_id) = u8::try_from(b.array_id) else { return };
+        let arrival = BeaconArrival {
+            array_id,
+            arrival_samples: b.arrival_samples,
+            quality: b.quality as f32,
+        };
+        if let (Ok(()), Some(history)) = (clock.push(arrival, b.t), self.clock_history.as_mut()) {
+            history.push((b.t, clock.statuses()));
+        }
+    }
+
+    /// The clock model, if the site has a beacon.
+    pub fn clock(&self) -> Option<&ClockModel> {
+        self.clock.as_ref()
+    }
+
+    /// Keeps every array's clock after each beacon arrival from now on (for an evaluation;
+    /// it grows with the flight).
+    pub fn keep_clock_history(mut self) -> Self {
+        self.clock_history = Some(Vec::new());
+        self
+    }
+
+    /// With [`Tracker::keep_clock_history`]: every array's clock after each beacon arrival the
+    /// model used (the arrival's time on its array's time base, s; the clocks); else empty.
+    pub fn clock_history(&self) -> &[(f64, Vec<ArrayClock>)] {
+        self.clock_history.as_deref().unwrap_or(&[])
     }
 
     /// How many times another array took over the track ([`TrackerConfig::failover_s`]).
