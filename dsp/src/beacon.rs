@@ -42,7 +42,12 @@
 //!    (28 µs) would slip one carrier cycle (56 µs), which the quality threshold keeps rare.
 //!
 //! The arrival is that of the emission's first sample (t = 0 above) at microphone 0, on the
-//! board's input clock. Memory: about 8.7 KiB (two 512-point complex buffers); the overlap
+//! board's input clock, when the speaker's and the board's clocks run at the same rate. When
+//! they differ by a relative rate ε (their drifts), the received emission is stretched by ε
+//! and the matched filter locks onto its centre: the report is then the arrival of the
+//! emission's centre less `LEN / 2` board samples (the first sample's arrival + ε · LEN / 2,
+//! 0.15 sample at 100 ppm). A clock model should therefore use `reported + LEN / 2` as the
+//! arrival of the emission's centre, which is exact for any drift. Memory: about 8.7 KiB (two 512-point complex buffers); the overlap
 //! tail is parked in the caller's scratch during the transform.
 
 use microfft::Complex32;

@@ -22,6 +22,7 @@ use rand::{rngs::StdRng, Rng, SeedableRng};
 
 pub mod air;
 pub mod array;
+pub mod beacon;
 pub mod bpf_bench;
 pub mod drones;
 pub mod eval;
@@ -49,7 +50,7 @@ use filter::Gaussian;
 use flight::{ControlGains, FlightLog};
 use propagation::{Fixed, Medium, PathKind, Receiver, Trajectory};
 use scenario::{RotorSources, Scenario};
-use site::{Site, SiteArray, SiteObstacle, SiteRoom};
+use site::{Site, SiteArray, SiteBeacon, SiteObstacle, SiteRoom};
 use sound::SignalBlocks as _;
 use truth::{Truth, TruthRow};
 
@@ -448,6 +449,9 @@ pub fn simulate_to(
                 *outside.lock().expect("no panics while held") = Some(e);
             }
         }
+        for b in &scenario.beacons {
+            b.render(&medium, &paths, &rx, out);
+        }
         if let Some(tail) = &tail {
             // The sources the room reverberates: all but the straight-only rotor paths and
             // the diffuse field's plane waves.
@@ -703,6 +707,18 @@ fn make_site(s: &Scenario, c: f64) -> Site {
                 min: o.min.into(),
                 max: o.max.into(),
                 loss_db: o.loss_db,
+            })
+            .collect(),
+        // What a site surveys and publishes; never the speaker's (or any array's) clock.
+        beacons: s
+            .beacons
+            .iter()
+            .map(|b| SiteBeacon {
+                id: b.id,
+                position: b.position_m.into(),
+                period_s: b.period_s,
+                sequence: aim_dsp::beacon::SEQUENCE_NAME.into(),
+                level_db: b.level_db,
             })
             .collect(),
     }
