@@ -193,11 +193,6 @@ struct SiteFile {
     #[serde(default)]
     #[allow(dead_code)]
     obstacle: Vec<toml::Value>,
-    /// Synchronisation beacons (`[[beacon]]`: id, position, period_s, sequence, level_db);
-    /// accepted here, read by the clock model.
-    #[serde(default)]
-    #[allow(dead_code)]
-    beacon: Vec<toml::Value>,
     /// The NED origin for outputs that need one: read by [`crate::output::ned::Origin`].
     #[allow(dead_code)]
     origin: Option<toml::Value>,

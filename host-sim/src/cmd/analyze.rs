@@ -311,6 +311,20 @@ impl Printer {
                     )
                 }
             }
+            Output::Beacon(b) => {
+                let t = (b.sample_index as f64 + f64::from(b.fraction)) / self.fs;
+                if self.jsonl {
+                    serde_json::json!({
+                        "kind": "beacon", "t": t, "quality": b.quality, "level_db": b.level_db,
+                    })
+                    .to_string()
+                } else {
+                    format!(
+                        "{t:12.6} s  beacon quality {:.2}  level {:.1} dBFS",
+                        b.quality, b.level_db
+                    )
+                }
+            }
             Output::Health(h) => {
                 self.counts[2] += 1;
                 let t = h.sample_index as f64 / self.fs;

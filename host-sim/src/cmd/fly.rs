@@ -81,7 +81,7 @@ pub(crate) struct TrackRun {
     /// Its fixes' latency.
     pub latency: aim_tracker::session::FixStats,
     /// With a beacon: the clock model's sync error [`SYNC_AFTER_S`] after its first beacon.
-    pub sync: Option<crate::eval::sync::SyncError>,
+    pub sync: Option<host_sim::eval::sync::SyncError>,
 }
 
 /// When the clock sync error is read: this long after the first beacon arrival, s (issue 14:
@@ -313,7 +313,7 @@ pub(crate) fn track_recorded(
         );
         let fs = f64::from(site.sample_rate_hz.unwrap_or(48_000));
         let sync =
-            crate::eval::sync::error_after(tracker.clock_history(), &rec.truth, fs, SYNC_AFTER_S);
+            host_sim::eval::sync::error_after(tracker.clock_history(), &rec.truth, fs, SYNC_AFTER_S);
         if let Some(e) = &sync {
             eprintln!(
                 "{}: clock sync {SYNC_AFTER_S} s after the first beacon: max {:.2} µs, rms {:.2} µs over {} of {} arrays",
