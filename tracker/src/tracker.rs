@@ -9,7 +9,7 @@ use std::collections::VecDeque;
 use crate::doa::{DoaConfig, DoaState, DoaWindow};
 use crate::doppler::{DopplerFrame, FrameCentre, DEFAULT_SPEED_OF_SOUND_MPS};
 use crate::dynamics::{sum_bpf_squared, AcousticSpeed, HoverCalibration, SpeedIntegrator};
-use crate::filter::{new_filter, Filter, FilterKind, Step};
+use crate::filter::{new_filter, Filter, FilterKind, RangeDifference, Step};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
@@ -300,6 +300,8 @@ pub struct Tracker {
     last_takeover_t: f64,
     /// The arrays' clocks from the site's beacon ([`Tracker::with_sync`]), if it has one.
     clock: Option<ClockModel>,
+    /// Range differences measured since the last step, for the filter.
+    range_differences: Vec<RangeDifference>,
     /// With [`Tracker::keep_clock_history`]: every array's clock after each beacon arrival
     /// (the arrival's time, s; the clocks).
     clock_history: Option<Vec<(f64, Vec<ArrayClock>)>>,
@@ -393,6 +395,7 @@ impl Tracker {
             last_takeover_t: f64::NEG_INFINITY,
             clock: None,
             clock_history: None,
+            range_differences: Vec::new(),
         })
     }
 
@@ -947,6 +950,7 @@ impl Tracker {
             t,
             dt,
             others,
+            range_differences: std::mem::take(&mut self.range_differences),
             array: &self.site.arrays[self.array_index],
             doa,
             los,

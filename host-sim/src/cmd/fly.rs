@@ -312,8 +312,12 @@ pub(crate) fn track_recorded(
             tracker.profile().k_v
         );
         let fs = f64::from(site.sample_rate_hz.unwrap_or(48_000));
-        let sync =
-            host_sim::eval::sync::error_after(tracker.clock_history(), &rec.truth, fs, SYNC_AFTER_S);
+        let sync = host_sim::eval::sync::error_after(
+            tracker.clock_history(),
+            &rec.truth,
+            fs,
+            SYNC_AFTER_S,
+        );
         if let Some(e) = &sync {
             eprintln!(
                 "{}: clock sync {SYNC_AFTER_S} s after the first beacon: max {:.2} µs, rms {:.2} µs over {} of {} arrays",

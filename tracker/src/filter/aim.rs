@@ -47,6 +47,9 @@ pub struct AimConfig {
     /// Probability that another array's bearing is an outlier (uniform over the directions)
     /// in the hypotheses' likelihood ([`crate::filter::ekf::Ekf::update_bearing_other`]).
     pub other_outlier_probability: f64,
+    /// Probability that an inter-array delay is a wrong correlation peak (uniform over the
+    /// window it was searched in).
+    pub range_difference_outlier_probability: f64,
     /// White-acceleration density while moving along the class's axes, m²/s³.
     pub q_moving: f64,
     /// White-acceleration density otherwise, m²/s³.
@@ -126,6 +129,7 @@ impl Default for AimConfig {
             other_zenith_sigma: 5.0f64.to_radians(),
             other_gate: 4.0,
             other_outlier_probability: 0.05,
+            range_difference_outlier_probability: 0.1,
             q_moving: 0.6,
             q_still: 0.02,
             q_cruise: 0.02,
@@ -445,6 +449,18 @@ impl Filter for AimFilter {
                     )
                     .unwrap_or(0.0);
             }
+            for rd in &step.range_differences {
+                ll += f
+                    .update_range_difference(
+                        rd.p,
+                        rd.q,
+                        rd.range_difference_m,
+                        rd.sigma_m,
+                        step.t - rd.t,
+                        (c.other_gate, c.range_difference_outlier_probability, rd.span_m),
+                    )
+                    .unwrap_or(0.0);
+            }
             if let Some((az, saz)) = nlos_azimuth {
                 let l = f.update_azimuth(step.array, az, saz).unwrap_or(0.0);
                 if moving {
@@ -540,6 +556,7 @@ mod tests {
             };
             let step = Step {
                 others: Vec::new(),
+                range_differences: Vec::new(),
                 t,
                 dt,
                 array: &array,
@@ -619,6 +636,7 @@ mod tests {
         {
             let step = Step {
                 others: Vec::new(),
+                range_differences: Vec::new(),
                 t: k as f64 * 0.1,
                 dt: 0.1,
                 array: &array,
