@@ -224,9 +224,10 @@ pub fn offset_variance_bound(sigma_s: f64, k: usize) -> f64 {
 
 impl ClockModel {
     /// A model for a beacon at `beacon_position` (world m), arrays `(id, position)` (world m),
-    /// speed of sound `speed_of_sound_mps` (m/s).
+    /// speed of sound `speed_of_sound_mps` (m/s). The coarse gate is kept below a quarter of
+    /// the period.
     pub fn new(
-        config: ClockConfig,
+        mut config: ClockConfig,
         beacon_position: [f64; 3],
         speed_of_sound_mps: f64,
         arrays: &[(u8, [f64; 3])],
@@ -248,6 +249,7 @@ impl ClockModel {
                 (id, state)
             })
             .collect();
+        config.coarse_gate_s = config.coarse_gate_s.min(config.period_s / 4.0);
         Self { config, arrays, emissions: Vec::new(), reference: None }
     }
 
@@ -480,10 +482,11 @@ impl ClockModel {
                 m.outlier = false;
             }
         }
-        // Solve, reject the worst arrival beyond the gate, solve again.
+        // Solve, reject the worst arrival beyond the gate, solve again; at most a quarter of
+        // the window's arrivals (beyond that the window is not trusted: no new maps).
         let total: usize = self.emissions.iter().map(|e| e.members.len()).sum();
         let mut solution = None;
-        for _ in 0..=total {
+        for _ in 0..=total / 4 {
             let Some(s) = self.solve_once() else { break };
             match self.worst_outlier(&s) {
                 Some((k, j)) => {
@@ -854,6 +857,56 @@ mod tests {
         }
     }
 
+    /// Quality weights: two arrays, noiseless but for one arrival of array 1 late by 15 µs
+    /// (inside the gate). With e_k free, each emission's weight in the relative clock line is
+    /// w₀w₁/(w₀ + w₁); the change of the model's error at the newest emission equals that
+    /// weighted regression's response to the shift (the oracle), and a low quality shrinks it.
+    #[test]
+    fn quality_weights_the_arrivals() {
+        let run = |q: f32, shift: f64| {
+            let mut rng = Rng::new(17);
+            let world = World::new(&mut rng);
+            let mut m = model();
+            let (k, j) = (12, 4);
+            let mut points = Vec::new();
+            for e in 0..k {
+                for p in 0..2 {
+                    let (mut a, coarse) = world.arrival(p, e, 0.0, &mut rng);
+                    if p == 1 {
+                        if e == j {
+                            a.arrival_samples += shift * FS;
+                            a.quality = q;
+                        }
+                        let w = 0.8 * f64::from(a.quality) / (0.8 + f64::from(a.quality));
+                        points.push((a.arrival_samples, w));
+                    }
+                    m.push(a, coarse).unwrap();
+                }
+            }
+            assert_eq!(m.status(1).unwrap().rejected, 0);
+            let t = world.emission(k - 1);
+            let err = world.error(&m, 1, t).unwrap();
+            // Weighted regression's response at sample n to a shift of point j.
+            let n = world.boards[1].sample_at(t);
+            let total: f64 = points.iter().map(|p| p.1).sum();
+            let mean = points.iter().map(|p| p.0 * p.1).sum::<f64>() / total;
+            let spread: f64 = points.iter().map(|p| p.1 * (p.0 - mean).powi(2)).sum();
+            let (nj, wj) = points[j];
+            (err, shift * wj * (1.0 / total + (n - mean) * (nj - mean) / spread))
+        };
+        let (base, _) = run(0.8, 0.0);
+        // Noiseless data: no error but a residue of 0.13 µs (not explained yet, see the report).
+        assert!(base.abs() < 0.2e-6, "{base}");
+        let mut changes = Vec::new();
+        for q in [0.8f32, 0.1] {
+            let (err, response) = run(q, 15e-6);
+            // A later arrival makes the array's clock read early: the error is −response.
+            assert!((err - base + response).abs() < 5e-9, "q {q}: {err} − {base} vs {response}");
+            changes.push((err - base).abs());
+        }
+        assert!(changes[1] < 0.5 * changes[0], "{changes:?}");
+    }
+
     /// A board that starts 8 s late is unsynced until it has heard three emissions, then synced
     /// to within the bound for three emissions; one that never hears the beacon stays unsynced
     /// and does not disturb the others.
@@ -990,6 +1043,8 @@ mod tests {
         let (site, sync) = (Site::parse(text, path).unwrap(), SiteSync::parse(text, path).unwrap());
         let m = ClockModel::from_site(&site, &sync, ClockConfig::default()).unwrap();
         assert_eq!((m.config().period_s, m.config().sample_rate_hz), (2.0, 44_100.0));
+        let fast = ClockConfig { period_s: 0.4, ..ClockConfig::default() };
+        assert_eq!(ClockModel::new(fast, [0.0; 3], 343.0, &[]).config().coarse_gate_s, 0.1);
         assert_eq!(m.arrays[&3].delay_s, 0.01);
         assert_eq!(m.arrays[&4].delay_s, 0.01);
         assert!(
