@@ -12,6 +12,8 @@ pub enum Output {
     Health(Health),
     /// Drone-identification features of a BPF analysis window ([`crate::idframe`]).
     Mfcc(crate::idframe::IdFeatures),
+    /// 32 ms of the array's mean signal at 8 kHz, for inter-array delays ([`crate::snippet`]).
+    Snippet(crate::snippet::Snippet),
 }
 
 /// Direction of arrival, far field, planar array (source on the +z side).

@@ -29,6 +29,7 @@ use crate::doa::{self, Pair};
 use crate::frontend::{self, FrontEnd};
 use crate::gcc_phat::{self, DelayEstimate, Twiddles};
 use crate::idframe::IdExtractor;
+use crate::snippet::{self, Snippet, SNIPPET_LEN};
 use crate::{
     Config, ConfigError, Doa, Health, Output, MAX_BAND_BINS, MAX_BLOCK_LEN, MAX_MICS, MAX_PAIRS,
 };
@@ -113,6 +114,8 @@ pub struct Pipeline {
     /// The spectral path's own stamp of its first sample after the last gap; an analysis
     /// window that starts earlier holds samples from before the gap and is dropped.
     spectral_clean_from: u64,
+    /// Decimated sample (spectral path's count) where the next snippet starts.
+    next_snippet: u64,
 }
 
 impl Pipeline {
@@ -158,6 +161,7 @@ impl Pipeline {
             gap_stats: GapStats { gaps: 0, frames_lost: 0, outputs_dropped: 0 },
             spectral_skipped: 0,
             spectral_clean_from: 0,
+            next_snippet: 0,
         }
     }
 
@@ -219,6 +223,7 @@ impl Pipeline {
         self.gap_stats = GapStats::default();
         self.spectral_skipped = 0;
         self.spectral_clean_from = 0;
+        self.next_snippet = 0;
         self.analyses_since_mfcc = 0;
         self.delays = [DelayEstimate::default(); MAX_PAIRS];
         for c in &mut self.cross {
@@ -488,6 +493,9 @@ impl Pipeline {
         let bits = shift + 15 - self.q_exponent() as u32;
         let scale = 1.0 / ((1u64 << bits) as f32 * self.mics as f32);
         let due = self.spectral.push_block(&self.block[0][..self.fft_len], scale);
+        if self.config.snippets {
+            self.emit_snippets(sink);
+        }
         if due {
             if self.spectral.window_start_sample() < self.spectral_clean_from {
                 // The window holds samples from before a gap.
@@ -509,6 +517,29 @@ impl Pipeline {
                     sink(Output::Mfcc(f));
                 }
             }
+        }
+    }
+
+    /// Every whole [`SNIPPET_LEN`] of decimated samples the spectral path has made since the
+    /// last snippet, quantised ([`crate::snippet`]); one that holds samples from before a gap
+    /// is dropped (and counted), so the stream stays contiguous between gaps.
+    fn emit_snippets(&mut self, sink: &mut impl FnMut(Output)) {
+        let factor = self.spectral.input_per_output() as u64;
+        while self.spectral.produced() >= self.next_snippet + SNIPPET_LEN as u64 {
+            let first = self.next_snippet;
+            self.next_snippet += SNIPPET_LEN as u64;
+            let Some(x) = self.spectral.recent(first, SNIPPET_LEN) else { continue };
+            if first * factor < self.spectral_clean_from {
+                self.gap_stats.outputs_dropped = self.gap_stats.outputs_dropped.wrapping_add(1);
+                continue;
+            }
+            let mut s = Snippet {
+                sample_index: first * factor + self.spectral_skipped,
+                decimation: factor as u8,
+                ..Snippet::default()
+            };
+            s.exponent = snippet::quantize(x, &mut s.samples);
+            sink(Output::Snippet(s));
         }
     }
 
