@@ -21,7 +21,7 @@
 /// Decimated samples per snippet (32 ms at 8 kHz). A power of two dividing the spectral
 /// path's ring ([`crate::bpf::ANALYSIS_LEN`]), so a snippet never wraps in it.
 pub const SNIPPET_LEN: usize = 256;
-const _: () = assert!(crate::bpf::ANALYSIS_LEN % SNIPPET_LEN == 0);
+const _: () = assert!(crate::bpf::ANALYSIS_LEN.is_multiple_of(SNIPPET_LEN));
 
 /// Lag of the snippet signal behind its stamps at 48 kHz input, input samples: the front
 /// end's 7-tap half-band (centre tap 3 samples before the pair's second sample, stamped at its

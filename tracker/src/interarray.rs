@@ -138,12 +138,25 @@ impl SnippetStore {
     /// Adds a snippet of `array_id` whose header sample index is `sample_index`. A snippet
     /// stamped before the last one (a reboot) clears the array's stream.
     pub fn push(&mut self, array_id: u8, sample_index: u64, snippet: &aim_wire::Snippet) {
+        let x = (0..snippet.samples.len()).map(|j| snippet.value(j)).collect();
+        self.push_samples(array_id, sample_index, u32::from(snippet.decimation.max(1)), x);
+    }
+
+    /// Adds a piece of `array_id`'s stream already in numbers: sample `j` of `values` taken
+    /// at input index `sample_index + j · decimation` (other formats than the wire's, for
+    /// trade-off studies).
+    pub fn push_samples(
+        &mut self,
+        array_id: u8,
+        sample_index: u64,
+        decimation: u32,
+        values: Vec<f64>,
+    ) {
         let s = self.streams.entry(array_id).or_default();
         if s.frames.back().is_some_and(|(last, _, _)| *last >= sample_index) {
             s.frames.clear();
         }
-        let x = (0..snippet.samples.len()).map(|j| snippet.value(j)).collect();
-        s.frames.push_back((sample_index, u32::from(snippet.decimation.max(1)), x));
+        s.frames.push_back((sample_index, decimation.max(1), values));
         while s.frames.len() > self.keep {
             s.frames.pop_front();
         }
@@ -240,7 +253,12 @@ pub fn gcc_phat_lag(
     let l = frame_len;
     let m = 2 * l;
     let n = xp.len().min(xq.len());
-    if !l.is_power_of_two() || n < l || !(range.0 <= range.1) {
+    if !l.is_power_of_two()
+        || n < l
+        || range.0.partial_cmp(&range.1) == Some(std::cmp::Ordering::Greater)
+        || range.0.is_nan()
+        || range.1.is_nan()
+    {
         return None;
     }
     let k_lo = ((band_hz.0 / fs * m as f64).ceil() as usize).max(1);
