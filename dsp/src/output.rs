@@ -15,6 +15,8 @@ pub enum Output {
     Mfcc(crate::idframe::IdFeatures),
     /// A synchronisation beacon's arrival at microphone 0 ([`crate::beacon`]), at 48 kHz only.
     Beacon(crate::beacon::Beacon),
+    /// 32 ms of the array's mean signal at 8 kHz, for inter-array delays ([`crate::snippet`]).
+    Snippet(crate::snippet::Snippet),
 }
 
 /// Direction of arrival, far field, planar array (source on the +z side).

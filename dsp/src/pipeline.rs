@@ -30,6 +30,7 @@ use crate::doa::{self, Pair};
 use crate::frontend::{self, FrontEnd};
 use crate::gcc_phat::{self, DelayEstimate, Twiddles};
 use crate::idframe::IdExtractor;
+use crate::snippet::{self, Snippet, SNIPPET_LEN};
 use crate::{
     Config, ConfigError, Doa, Health, Output, MAX_BAND_BINS, MAX_BLOCK_LEN, MAX_MICS, MAX_PAIRS,
 };
@@ -118,6 +119,8 @@ pub struct Pipeline {
     /// Beacon detector on microphone 0's input-rate words (48 kHz only).
     beacon: Detector,
     beacon_on: bool,
+    /// Decimated sample (spectral path's count) where the next snippet starts.
+    next_snippet: u64,
 }
 
 impl Pipeline {
@@ -165,6 +168,7 @@ impl Pipeline {
             spectral_clean_from: 0,
             beacon: Detector::empty(),
             beacon_on: false,
+            next_snippet: 0,
         }
     }
 
@@ -230,6 +234,7 @@ impl Pipeline {
         self.gap_stats = GapStats::default();
         self.spectral_skipped = 0;
         self.spectral_clean_from = 0;
+        self.next_snippet = 0;
         self.analyses_since_mfcc = 0;
         self.delays = [DelayEstimate::default(); MAX_PAIRS];
         for c in &mut self.cross {
@@ -514,6 +519,9 @@ impl Pipeline {
         let bits = shift + 15 - self.q_exponent() as u32;
         let scale = 1.0 / ((1u64 << bits) as f32 * self.mics as f32);
         let due = self.spectral.push_block(&self.block[0][..self.fft_len], scale);
+        if self.config.snippets {
+            self.emit_snippets(sink);
+        }
         if due {
             if self.spectral.window_start_sample() < self.spectral_clean_from {
                 // The window holds samples from before a gap.
@@ -535,6 +543,29 @@ impl Pipeline {
                     sink(Output::Mfcc(f));
                 }
             }
+        }
+    }
+
+    /// Every whole [`SNIPPET_LEN`] of decimated samples the spectral path has made since the
+    /// last snippet, quantised ([`crate::snippet`]); one that holds samples from before a gap
+    /// is dropped (and counted), so the stream stays contiguous between gaps.
+    fn emit_snippets(&mut self, sink: &mut impl FnMut(Output)) {
+        let factor = self.spectral.input_per_output() as u64;
+        while self.spectral.produced() >= self.next_snippet + SNIPPET_LEN as u64 {
+            let first = self.next_snippet;
+            self.next_snippet += SNIPPET_LEN as u64;
+            let Some(x) = self.spectral.recent(first, SNIPPET_LEN) else { continue };
+            if first * factor < self.spectral_clean_from {
+                self.gap_stats.outputs_dropped = self.gap_stats.outputs_dropped.wrapping_add(1);
+                continue;
+            }
+            let mut s = Snippet {
+                sample_index: first * factor + self.spectral_skipped,
+                decimation: factor as u8,
+                ..Snippet::default()
+            };
+            s.exponent = snippet::quantize(x, &mut s.samples);
+            sink(Output::Snippet(s));
         }
     }
 

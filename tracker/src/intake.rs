@@ -468,12 +468,13 @@ fn check_hello(
     Ok(())
 }
 
-/// Samples a frame describes (`Doa`, `Peaks`, `Mfcc`; 0 for the others).
+/// Samples a frame describes (`Doa`, `Peaks`, `Mfcc`, `Snippet`; 0 for the others).
 fn frame_span(frame: &Frame) -> u32 {
     match &frame.body {
         Body::Doa(d) => d.span_samples,
         Body::Peaks(p) => p.span_samples,
         Body::Mfcc(m) => m.span_samples,
+        Body::Snippet(x) => (x.samples.len() * usize::from(x.decimation)) as u32,
         _ => 0,
     }
 }

@@ -38,8 +38,24 @@ fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 6] {
         }),
         // One emission per second (the site's default period).
         (Kind::Beacon, if config.sample_rate_hz == 48_000 { 1.0 } else { 0.0 }),
+        (Kind::Snippet, {
+            let snippet_s =
+                aim_dsp::snippet::SNIPPET_LEN as f64 / f64::from(aim_dsp::bpf::DECIMATED_RATE_HZ);
+            if config.snippets {
+                1.0 / snippet_s
+            } else {
+                0.0
+            }
+        }),
     ]
 }
+
+/// Beacon detections (issue 14; kind 5, owned by branch `beacon`, not in this crate yet): one
+/// per beacon period of 1 s, at an allowance of 40 bytes on the wire (header ≤ 16, fraction,
+/// quality and level ≤ 10, CRC 4, COBS 1, delimiters 2; with room to spare). Replace by
+/// `Kind::Beacon.max_encoded_len()` when the kind exists.
+const BEACON_RATE: f64 = 1.0;
+const BEACON_ALLOWANCE_B: f64 = 40.0;
 
 /// Fraction of the link taken when every frame has its worst-case size; prints the table, with
 /// the load of typical frames (`common::sample_frames`, a 6-mic Hello) beside it.
@@ -65,6 +81,14 @@ fn load(config: &aim_dsp::Config, label: &str) -> f64 {
         worst_per_s += row.0;
         typical_per_s += row.1;
     }
+    println!(
+        "  {:7} {BEACON_RATE:6.2} {BEACON_ALLOWANCE_B:8} {:10.1} {BEACON_ALLOWANCE_B:10} {:12.1}  (allowance)",
+        "beacon",
+        BEACON_RATE * BEACON_ALLOWANCE_B,
+        BEACON_RATE * BEACON_ALLOWANCE_B
+    );
+    worst_per_s += BEACON_RATE * BEACON_ALLOWANCE_B;
+    typical_per_s += BEACON_RATE * BEACON_ALLOWANCE_B;
     let utilisation = worst_per_s * BITS_PER_BYTE / BAUD;
     let typical = typical_per_s * BITS_PER_BYTE / BAUD;
     println!(
@@ -82,7 +106,8 @@ fn eight_mics_at_default_rates_use_at_most_half_the_link() {
     let utilisation = load(&config, "aim-dsp defaults, 48 kHz, 8 mics, worst-case sizes");
     assert!(utilisation <= BUDGET, "{:.1} % of the link", 100.0 * utilisation);
     // Physical sanity of the rates read from aim-dsp: a DoA per few blocks, ~1 Health/s.
-    let [_, (_, doa), (_, peaks), (_, health), (_, mfcc), _] = rates(&config);
+    let [_, (_, doa), (_, peaks), (_, health), (_, mfcc), _, (_, snippets)] = rates(&config);
+    assert_eq!(snippets, 31.25, "a contiguous 8 kHz stream of 256-sample snippets");
     assert!((1.0..=47.0).contains(&doa), "DoA rate {doa}");
     assert!(mfcc > 0.0 && mfcc <= peaks, "Mfcc rate {mfcc}: one per analysis at most");
     assert!((0.5..=24.0).contains(&peaks), "Peaks rate {peaks}");
@@ -98,4 +123,13 @@ fn even_one_doa_per_block_fits() {
     config.validate().expect("aim-dsp accepts this configuration");
     let utilisation = load(&config, "one DoA and one Health per 1024-sample block");
     assert!(utilisation <= BUDGET, "{:.1} % of the link", 100.0 * utilisation);
+}
+
+#[test]
+fn without_snippets_the_link_is_as_before() {
+    // A single-array site (`Config::snippets` = false): today's load, for comparison.
+    let mut config = aim_dsp::Config::new(aim_dsp::Geometry::circle_8mic(), 48_000);
+    config.snippets = false;
+    let utilisation = load(&config, "aim-dsp defaults without snippets");
+    assert!(utilisation <= 0.02, "{:.1} % of the link", 100.0 * utilisation);
 }

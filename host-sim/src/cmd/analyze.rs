@@ -248,6 +248,8 @@ impl Printer {
         }
         let line = match o {
             Output::Doa(_) if self.skip_doa => return,
+            // Audio for the host's inter-array delays, not an analysis result.
+            Output::Snippet(_) => return,
             Output::Doa(d) => {
                 self.counts[0] += 1;
                 let t = d.sample_index as f64 / self.fs;

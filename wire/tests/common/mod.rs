@@ -108,7 +108,20 @@ pub fn sample_frames() -> Vec<Frame> {
             header: header(5, 57_912),
             body: Body::Beacon(aim_wire::Beacon::new(0.6021, 0.93, -71.25)),
         },
+        Frame { header: header(5, 3_073_536), body: Body::Snippet(sample_snippet()) },
     ]
+}
+
+/// A `Snippet` payload: a 328 Hz fundamental with its second harmonic at 8 kHz, peak mantissa
+/// 120, exponent −12 (about −31 dBFS).
+pub fn sample_snippet() -> aim_wire::Snippet {
+    let samples = (0..aim_wire::SNIPPET_SAMPLES)
+        .map(|j| {
+            let w = 2.0 * std::f64::consts::PI * 328.0 * j as f64 / 8000.0;
+            (80.0 * w.sin() + 40.0 * (2.0 * w + 0.5).sin()).round() as i8
+        })
+        .collect();
+    aim_wire::Snippet { decimation: 6, exponent: -12, samples }
 }
 
 /// An `Mfcc` payload as a hovering drone at 4 m gives (levels of a real run, rounded): a
@@ -202,6 +215,12 @@ pub fn worst_case(kind: Kind) -> Frame {
             fraction: u16::MAX,
             quality: u8::MAX,
             level_cdb: i16::MIN,
+        }),
+        // 0x7F: no byte for COBS to remove.
+        Kind::Snippet => Body::Snippet(aim_wire::Snippet {
+            decimation: u8::MAX,
+            exponent: i8::MIN,
+            samples: heapless::Vec::from_slice(&[i8::MAX; aim_wire::SNIPPET_SAMPLES]).unwrap(),
         }),
         _ => unreachable!("a kind without a worst case: add it here"),
     };
