@@ -19,7 +19,7 @@ const HELLO_PERIOD_S: f64 = 5.0;
 const BUDGET: f64 = 0.5;
 
 /// Frames per second of each kind for a pipeline configuration.
-fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 6] {
+fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 7] {
     let block_s = config.block_len as f64 / f64::from(config.sample_rate_hz);
     let peaks_hop_s =
         aim_dsp::bpf::ANALYSIS_HOP as f64 / f64::from(aim_dsp::bpf::DECIMATED_RATE_HZ);
@@ -50,13 +50,6 @@ fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 6] {
     ]
 }
 
-/// Beacon detections (issue 14; kind 5, owned by branch `beacon`, not in this crate yet): one
-/// per beacon period of 1 s, at an allowance of 40 bytes on the wire (header ≤ 16, fraction,
-/// quality and level ≤ 10, CRC 4, COBS 1, delimiters 2; with room to spare). Replace by
-/// `Kind::Beacon.max_encoded_len()` when the kind exists.
-const BEACON_RATE: f64 = 1.0;
-const BEACON_ALLOWANCE_B: f64 = 40.0;
-
 /// Fraction of the link taken when every frame has its worst-case size; prints the table, with
 /// the load of typical frames (`common::sample_frames`, a 6-mic Hello) beside it.
 fn load(config: &aim_dsp::Config, label: &str) -> f64 {
@@ -81,14 +74,6 @@ fn load(config: &aim_dsp::Config, label: &str) -> f64 {
         worst_per_s += row.0;
         typical_per_s += row.1;
     }
-    println!(
-        "  {:7} {BEACON_RATE:6.2} {BEACON_ALLOWANCE_B:8} {:10.1} {BEACON_ALLOWANCE_B:10} {:12.1}  (allowance)",
-        "beacon",
-        BEACON_RATE * BEACON_ALLOWANCE_B,
-        BEACON_RATE * BEACON_ALLOWANCE_B
-    );
-    worst_per_s += BEACON_RATE * BEACON_ALLOWANCE_B;
-    typical_per_s += BEACON_RATE * BEACON_ALLOWANCE_B;
     let utilisation = worst_per_s * BITS_PER_BYTE / BAUD;
     let typical = typical_per_s * BITS_PER_BYTE / BAUD;
     println!(
