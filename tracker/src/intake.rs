@@ -36,7 +36,7 @@ use std::collections::HashMap;
 
 use aim_wire::{Body, Frame, Hello};
 
-use crate::observation::{BeaconHeard, Bearing, BpfPeak, Input, Spectrum};
+use crate::observation::{BeaconHeard, Bearing, BpfPeak, Input, SnippetHeard, Spectrum};
 use crate::site::{ArrayPose, Site};
 
 /// Sample rate assumed before any `Hello` when the site file gives none, Hz.
@@ -278,6 +278,7 @@ impl Intake {
             Body::Peaks(p) => p.span_samples,
             // A beacon arrival is an instant.
             Body::Beacon(_) => 0,
+            Body::Snippet(x) => (x.samples.len() * usize::from(x.decimation)) as u32,
             // Health carries no observation and is stamped at the start of its second-long
             // interval: it takes no part in the time base.
             _ => return Ok(()),
@@ -362,6 +363,9 @@ impl Intake {
             }
         }
         let newest = timeline.newest_s(pose, fs);
+        if std::env::var("AIM_DEBUG4").is_ok() && id == 1 {
+            eprintln!("intake 1 {:?} idx {} accepted {} newest {newest:.3} pending {}", frame.body.kind(), frame.header.sample_index, accepted.len(), state.pending.len());
+        }
         self.now = self.now.max(newest);
         let until = newest - c.reorder_s;
         self.stats.inputs += release(state, id, until, sink);
@@ -390,6 +394,9 @@ fn release(
     until: f64,
     sink: &mut impl FnMut(Released),
 ) -> u64 {
+    if std::env::var("AIM_DEBUG5").is_ok() && array_id == 1 {
+        eprintln!("release 1 until {until:.3} released_until {:.3} held {} min_t {:?}", state.released_until, state.held.len(), state.held.iter().map(|i| i.t()).fold(f64::INFINITY, f64::min));
+    }
     if until <= state.released_until {
         return 0;
     }
@@ -516,6 +523,13 @@ fn input_of(array_id: u16, sample_index: u64, body: &Body, t: f64) -> Option<Inp
             array_id,
             arrival_samples: b.arrival_samples(sample_index),
             quality: f64::from(b.quality) / 255.0,
+        })),
+        Body::Snippet(x) => Some(Input::Snippet(SnippetHeard {
+            t,
+            array_id,
+            sample_index,
+            decimation: u32::from(x.decimation.max(1)),
+            values: (0..x.samples.len()).map(|j| x.value(j)).collect(),
         })),
         _ => None,
     }

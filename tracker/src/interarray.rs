@@ -87,7 +87,7 @@ pub struct InterArrayDelay {
 }
 
 /// One array's recent snippets, oldest first.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 struct Stream {
     /// (input-rate index of the first sample, decimation, values as fractions of full scale).
     frames: VecDeque<(u64, u32, Vec<f64>)>,
@@ -123,7 +123,7 @@ impl Stream {
 }
 
 /// The recent snippets of every array.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct SnippetStore {
     streams: BTreeMap<u8, Stream>,
     keep: usize,
@@ -177,6 +177,9 @@ impl SnippetStore {
         prior: Prior,
         config: &DelayConfig,
     ) -> Option<InterArrayDelay> {
+        if std::env::var("AIM_DEBUG").is_ok() {
+            eprintln!("delay p {p} q {q}: streams {:?}", self.streams.iter().map(|(k, v)| (*k, v.frames.len(), v.frames.front().map(|f| f.0), v.frames.back().map(|f| f.0))).collect::<Vec<_>>());
+        }
         let (sp, sq) = (self.streams.get(&p)?, self.streams.get(&q)?);
         let near_q = sq.frames.back()?.0 as f64;
         let near_p = sp.frames.back()?.0 as f64;

@@ -55,6 +55,21 @@ pub struct BeaconHeard {
     pub quality: f64,
 }
 
+/// A piece of one array's sound stream (a SNIPPET frame): for inter-array delays.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SnippetHeard {
+    /// Time of the piece's middle on the array's time base (the intake's), s.
+    pub t: f64,
+    /// Array id.
+    pub array_id: u16,
+    /// The board's input-rate sample index of `values[0]`.
+    pub sample_index: u64,
+    /// Input samples per value.
+    pub decimation: u32,
+    /// The sound, fractions of microphone full scale.
+    pub values: Vec<f64>,
+}
+
 /// One input of the tracker, in time order.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Input {
@@ -64,6 +79,8 @@ pub enum Input {
     Spectrum(Spectrum),
     /// A beacon arrival (several arrays: the clock model).
     Beacon(BeaconHeard),
+    /// A piece of an array's sound (several arrays: inter-array delays).
+    Snippet(SnippetHeard),
 }
 
 impl Input {
@@ -73,6 +90,7 @@ impl Input {
             Input::Bearing(b) => b.t,
             Input::Spectrum(s) => s.t,
             Input::Beacon(b) => b.t,
+            Input::Snippet(x) => x.t,
         }
     }
 
@@ -82,6 +100,7 @@ impl Input {
             Input::Bearing(b) => b.array_id,
             Input::Spectrum(s) => s.array_id,
             Input::Beacon(b) => b.array_id,
+            Input::Snippet(x) => x.array_id,
         }
     }
 }

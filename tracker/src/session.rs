@@ -492,6 +492,11 @@ impl Session {
 /// Keeps `r` in the re-tracking history, which is dropped once it would exceed
 /// [`RETRACK_HISTORY`] items.
 fn keep(history: &mut Option<Vec<Released>>, r: &Released) {
+    // Snippets are not kept: 31 a second per array, each 256 samples; a fresh tracker takes
+    // the old one's recent snippets instead (`Tracker::fresh`).
+    if matches!(r, Released::Input(crate::observation::Input::Snippet(_))) {
+        return;
+    }
     if let Some(h) = history {
         if h.len() < RETRACK_HISTORY {
             h.push(r.clone());
@@ -512,7 +517,10 @@ fn feed(
         Released::Audio { array_id, from_s, to_s } => tracker.add_audio(array_id, from_s, to_s),
         Released::Input(input) => {
             let (id, t) = (input.array_id(), input.t());
-            let observation = !matches!(input, crate::observation::Input::Beacon(_));
+            let observation = matches!(
+                input,
+                crate::observation::Input::Bearing(_) | crate::observation::Input::Spectrum(_)
+            );
             if observation && id == tracker.array_id() {
                 *span = Some(span.map_or((t, t), |(a, _)| (a, t)));
             }

@@ -13,7 +13,8 @@ use crate::filter::{new_filter, Filter, FilterKind, RangeDifference, Step};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
-use crate::multi::clock::{ArrayClock, BeaconArrival, ClockConfig, ClockModel};
+use crate::interarray::{DelayConfig, Prior, SnippetStore};
+use crate::multi::clock::{ArrayClock, BeaconArrival, ClockConfig, ClockMap, ClockModel, SyncStatus};
 use crate::observation::{BeaconHeard, Bearing, BpfPeak, Input, Spectrum};
 use crate::profile::Profile;
 use crate::site::{Site, SiteSync};
@@ -300,8 +301,17 @@ pub struct Tracker {
     last_takeover_t: f64,
     /// The arrays' clocks from the site's beacon ([`Tracker::with_sync`]), if it has one.
     clock: Option<ClockModel>,
+    /// The clock model as [`Tracker::with_sync`] made it, before any beacon (for
+    /// [`Tracker::fresh`]).
+    clock_template: Option<ClockModel>,
     /// Range differences measured since the last step, for the filter.
     range_differences: Vec<RangeDifference>,
+    /// The arrays' recent sound (SNIPPET frames), with a beacon clock.
+    snippets: SnippetStore,
+    /// Time of the last inter-array delay measurement, s.
+    last_delays_t: f64,
+    /// Velocity of the last fix, ENU m/s.
+    last_velocity: [f64; 3],
     /// With [`Tracker::keep_clock_history`]: every array's clock after each beacon arrival
     /// (the arrival's time, s; the clocks).
     clock_history: Option<Vec<(f64, Vec<ArrayClock>)>>,
@@ -322,6 +332,24 @@ fn merge_span(spans: &mut VecDeque<(f64, f64)>, from: f64, to: f64) {
 /// Most bearings of other arrays held for the filter (about 5 s of eight arrays): a stream
 /// of other arrays' frames while the tracked array is silent cannot grow memory.
 pub const OTHERS_KEPT: usize = 256;
+
+/// Snippets kept per array (31.25 per second): 2 s.
+const SNIPPETS_KEPT: usize = 64;
+/// How often inter-array delays are measured, s.
+pub const DELAYS_EVERY_S: f64 = 0.25;
+/// Correlation window of an inter-array delay, s (BENCHMARKS.md "Snippets for inter-array
+/// delays": 0.25 s beats 0.5 s on a moving drone).
+pub const DELAYS_WINDOW_S: f64 = 0.25;
+/// How far before the output instant the window's centre lies, s: half a window plus the
+/// snippets' own span, so both arrays' windows have arrived.
+pub const DELAYS_LOOKBACK_S: f64 = 0.6;
+/// Half width of the search around the predicted delay, s (under half a BPF period, ≈ 1.5 ms,
+/// so one harmonic peak; 0.41 m of range difference).
+pub const DELAYS_PRIOR_S: f64 = 1.2e-3;
+/// Least correlation quality of a delay the filter takes.
+pub const DELAYS_MIN_QUALITY: f64 = 0.1;
+/// Standard deviation of a range difference, m (≈ 120 µs rms measured, BENCHMARKS.md).
+pub const DELAYS_SIGMA_M: f64 = 0.04;
 
 impl std::fmt::Debug for Tracker {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -394,8 +422,12 @@ impl Tracker {
             last_position: None,
             last_takeover_t: f64::NEG_INFINITY,
             clock: None,
+            clock_template: None,
             clock_history: None,
             range_differences: Vec::new(),
+            snippets: SnippetStore::new(SNIPPETS_KEPT),
+            last_delays_t: f64::NEG_INFINITY,
+            last_velocity: [0.0; 3],
         })
     }
 
@@ -449,8 +481,22 @@ impl Tracker {
     pub fn push(&mut self, input: Input) -> Vec<Fix> {
         let t = input.t();
         let from = input.array_id();
+        if std::env::var("AIM_DEBUG7").is_ok() && from == 1 && !matches!(input, Input::Snippet(_)) {
+            eprintln!("top1 {:?} t {t:.3} tracked {}", std::mem::discriminant(&input), self.array_id());
+        }
         if let Input::Beacon(b) = &input {
             self.hear_beacon(b);
+            return Vec::new();
+        }
+        if let Input::Snippet(x) = input {
+            if std::env::var("AIM_DEBUG2").is_ok() {
+                eprintln!("snip {} {} t {:.3}", x.array_id, x.sample_index, x.t);
+            }
+            if let (true, Some(_), Ok(id)) =
+                (self.config.fuse_arrays, &self.clock, u8::try_from(x.array_id))
+            {
+                self.snippets.push_samples(id, x.sample_index, x.decimation, x.values);
+            }
             return Vec::new();
         }
         if from != self.array_id() {
@@ -470,6 +516,9 @@ impl Tracker {
                 return Vec::new();
             }
         }
+        if std::env::var("AIM_DEBUG7").is_ok() && from == 1 {
+            eprintln!("push1 {:?} t {t:.3} latest {:.3}", std::mem::discriminant(&input), self.latest_input_t);
+        }
         if !t.is_finite() || t + 1e-9 < self.latest_input_t {
             return Vec::new();
         }
@@ -488,7 +537,7 @@ impl Tracker {
         match input {
             Input::Bearing(b) => self.window.push(b),
             Input::Spectrum(s) => self.add_spectrum(&s),
-            Input::Beacon(_) => {}
+            Input::Beacon(_) | Input::Snippet(_) => {}
         }
         fixes
     }
@@ -514,6 +563,12 @@ impl Tracker {
         let mut t = Self::new(self.site.clone(), profile, self.kind, self.config.clone())
             .expect("this tracker's site and configuration were accepted");
         t.gate_on_audio = self.gate_on_audio;
+        // The clock model starts afresh too (the replayed history holds the beacons); the
+        // snippets are not replayed (too many), so the recent ones carry over.
+        t.clock_template.clone_from(&self.clock_template);
+        t.clock.clone_from(&self.clock_template);
+        t.clock_history = self.clock_history.as_ref().map(|_| Vec::new());
+        t.snippets = self.snippets.clone();
         t
     }
 
@@ -537,6 +592,9 @@ impl Tracker {
     /// a pause, has not been heard all along and does not take the track back.
     fn may_take_over(&self, array_id: u16, t: f64) -> bool {
         let c = &self.config;
+        if std::env::var("AIM_DEBUG6").is_ok() && t - self.latest_input_t > 0.5 {
+            eprintln!("may_take_over {array_id} t {t:.3} latest {:.3}", self.latest_input_t);
+        }
         let since = if self.latest_input_t.is_finite() {
             let silence = t - self.latest_input_t;
             if silence <= c.failover_s || silence > c.max_gap_s {
@@ -624,7 +682,94 @@ impl Tracker {
     /// clock ([`crate::multi::clock`]).
     pub fn with_sync(mut self, sync: &SiteSync) -> Self {
         self.clock = ClockModel::from_site(&self.site, sync, ClockConfig::default());
+        self.clock_template.clone_from(&self.clock);
         self
+    }
+
+    /// Inter-array delays around `t` (s, the tracked array's time base) for the filter:
+    /// every [`DELAYS_EVERY_S`], with a beacon clock that has synced the arrays, the GCC-PHAT
+    /// of each synced array's snippets against those of the array nearest the last fix, over
+    /// a window ending [`DELAYS_LOOKBACK_S`] − half a window before `t` (its snippets have
+    /// arrived by then), searched within ±[`DELAYS_PRIOR_S`] of the delay the last fix
+    /// predicts. Each becomes a range difference c·T_pq between the arrays' centres (the
+    /// snippets are the mean of the microphones). The tracked array's time is taken as its
+    /// sample count over the nominal rate.
+    fn measure_range_differences(&mut self, t: f64) {
+        if t - self.last_delays_t < DELAYS_EVERY_S {
+            return;
+        }
+        let (Some(clock), Some(x), Ok(tracked)) =
+            (&self.clock, self.last_position, u8::try_from(self.array_id()))
+        else {
+            return;
+        };
+        let synced = |id: u8| {
+            clock
+                .status(id)
+                .filter(|s| s.status == SyncStatus::Synced)
+                .and_then(|s| s.map)
+        };
+        let Some(tracked_map) = synced(tracked) else { return };
+        self.last_delays_t = t;
+        let fs = f64::from(self.site.sample_rate_hz.unwrap_or(48_000));
+        let c = DEFAULT_SPEED_OF_SOUND_MPS;
+        let t_then = t - DELAYS_LOOKBACK_S;
+        let centre = tracked_map.time(t_then * fs);
+        let lag = self.last_output.map_or(0.0, |last| last - t_then);
+        let then: [f64; 3] = std::array::from_fn(|i| x[i] - self.last_velocity[i] * lag);
+        let arrays: Vec<(u8, [f64; 3], ClockMap)> = self
+            .site
+            .arrays
+            .iter()
+            .filter_map(|a| {
+                let id = u8::try_from(a.id).ok()?;
+                if std::env::var("AIM_SKIP").ok().and_then(|v| v.parse::<u8>().ok()) == Some(id) {
+                    return None;
+                }
+                Some((id, a.position, synced(id)?))
+            })
+            .collect();
+        let distance = |a: [f64; 3]| (0..3).map(|i| (then[i] - a[i]).powi(2)).sum::<f64>().sqrt();
+        let Some(&(q, aq, map_q)) =
+            arrays.iter().min_by(|a, b| distance(a.1).total_cmp(&distance(b.1)))
+        else {
+            return;
+        };
+        let config = DelayConfig { window_s: DELAYS_WINDOW_S, ..DelayConfig::default() };
+        for &(p, ap, map_p) in arrays.iter().filter(|a| a.0 != q) {
+            let prior = Prior {
+                centre_s: (distance(ap) - distance(aq)) / c,
+                half_width_s: DELAYS_PRIOR_S,
+            };
+            let Some(d) = self.snippets.delay(
+                p,
+                q,
+                &|n: f64| map_p.time(n),
+                &|n: f64| map_q.time(n),
+                centre,
+                prior,
+                &config,
+            ) else {
+                if std::env::var("AIM_DEBUG").is_ok() {
+                    eprintln!("rd none t {t:.2} p {p} q {q} centre {centre:.3}");
+                }
+                continue;
+            };
+            if d.quality < DELAYS_MIN_QUALITY {
+                continue;
+            }
+            if std::env::var("AIM_DEBUG").is_ok() {
+                eprintln!("rd t {:.2} p {p} q {q} rd {:.3} pred {:.3} quality {:.2} margin {:.2}", t_then + (d.time_s - centre), c * d.delay_s, c * prior.centre_s, d.quality, d.margin);
+            }
+            self.range_differences.push(RangeDifference {
+                t: t_then + (d.time_s - centre),
+                p: ap,
+                q: aq,
+                range_difference_m: c * d.delay_s,
+                sigma_m: DELAYS_SIGMA_M,
+                span_m: c * DELAYS_PRIOR_S,
+            });
+        }
     }
 
     /// One beacon arrival to the clock model (none without a beacon in the site); an arrival
@@ -933,6 +1078,7 @@ impl Tracker {
         });
         // Other arrays' bearings up to this instant, each once; those older than `stale_s`
         // are dropped unused.
+        self.measure_range_differences(t);
         let mut others = Vec::new();
         let stale = self.config.stale_s;
         self.others.retain(|b| {
@@ -964,6 +1110,7 @@ impl Tracker {
         };
         let est = self.filter.step(&step)?;
         self.last_position = Some(est.position);
+        self.last_velocity = est.velocity;
         let pc = &est.position_covariance;
         Some(Fix {
             t,

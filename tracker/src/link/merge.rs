@@ -138,7 +138,14 @@ impl<R: Read> Merged<R> {
                                 input.rate_hz = f64::from(h.sample_rate_hz);
                             }
                         }
-                        let key = input.key(end_s(&f, input.rate_hz));
+                        // A frame that describes no span of audio (Hello, Health, Beacon) is
+                        // stamped at an instant behind the audio sent before it: it goes with
+                        // the recording's current key and says nothing of its continuity.
+                        let key = if crate::intake::frame_end(&f) == f.header.sample_index {
+                            input.key_s
+                        } else {
+                            input.key(end_s(&f, input.rate_hz))
+                        };
                         input.head = Some((f, key));
                     }
                     Some(Err(e)) => {
