@@ -22,6 +22,9 @@ use crate::MAX_MICS;
 pub const MAX_BLOCK_SHIFT: u32 = 16;
 /// Magnitude at or above which a word counts as clipped (24-bit full scale, left-justified).
 pub const CLIP_LEVEL: i32 = 0x7FFF_FF00 - 0x100;
+/// Lower bound of `x ^ (x >> 31)` over clipped words `x` (|x| ≥ [`CLIP_LEVEL`]): an OR of
+/// these values below it proves that no word was clipped.
+const CLIP_SCREEN: u32 = (CLIP_LEVEL - 1) as u32;
 
 /// Running-mean length exponent k for a sample rate: the DC corner sits near 5–8 Hz.
 pub fn dc_shift(sample_rate_hz: u32) -> u32 {
@@ -42,34 +45,73 @@ pub fn spatial_decimation(sample_rate_hz: u32) -> usize {
     }
 }
 
-/// History of one microphone's half-band decimator (Q25 samples). With the newest input pair
-/// (x(n−1), x(n)): `y(n) = 16·x(n−3) + 9·(x(n−2) + x(n−4)) − (x(n) + x(n−6))`.
+/// State of one microphone's half-band decimator (Q25 samples). With the newest input pair
+/// (x(n−1), x(n)): `y(n) = 16·x(n−3) + 9·(x(n−2) + x(n−4)) − (x(n) + x(n−6))`, computed as
+/// `partial − x(n)` with `partial` formed when the previous pair completed (the same integer:
+/// every term and sum stays below 2^31 in magnitude, 36 · 2^25 at most).
 #[derive(Debug, Clone, Copy)]
 struct HalfBand {
-    /// x(n−3): the first sample of the previous pair.
-    odd: i32,
-    /// x(n−2), x(n−4), x(n−6): the second samples of the last three pairs, newest first.
-    even: [i32; 3],
+    /// 16·x(n−3) + 9·(x(n−2) + x(n−4)) − x(n−6) for the pair being completed.
+    partial: i32,
+    /// x(n−2), x(n−4): the second samples of the last two pairs, newest first.
+    even: [i32; 2],
     /// The first sample of the pair being completed.
     pending: i32,
 }
 
 impl HalfBand {
-    const ZERO: Self = Self { odd: 0, even: [0; 3], pending: 0 };
+    const ZERO: Self = Self { partial: 0, even: [0; 2], pending: 0 };
 }
 
-/// The half-band output for the pair (`first`, `second`), updating the history in registers.
+/// The half-band output for the pair (`first`, `second`), updating the state in registers.
 #[inline(always)]
-fn half_band(odd: &mut i32, e: &mut [i32; 3], first: i32, second: i32) -> i32 {
-    let y = 16 * *odd + 9 * (e[0] + e[1]) - (second + e[2]);
-    *e = [second, e[0], e[1]];
-    *odd = first;
+fn half_band(partial: &mut i32, e: &mut [i32; 2], first: i32, second: i32) -> i32 {
+    let y = *partial - second;
+    *partial = 16 * first + 9 * (second + e[0]) - e[1];
+    *e = [second, e[0]];
     y
 }
 
 /// DC running-mean exponent k of a decimating front end (at the 24 kHz spatial rate: 7.5 Hz);
 /// a constant so the decimating loops keep it out of a register.
 const DECIMATED_DC_SHIFT: u32 = 9;
+
+/// One microphone's decimating front end in registers: half-band, DC removal, peak.
+struct Lane {
+    partial: i32,
+    even: [i32; 2],
+    dc: i32,
+    /// The largest zigzag code `2|y| − (y < 0)` of the outputs (and of the peak before):
+    /// two instructions per output where `unsigned_abs` takes three or four, the same order
+    /// on |y|.
+    z: u32,
+}
+
+impl Lane {
+    #[inline(always)]
+    fn load(front: &FrontEnd, mic: usize, peak: u32) -> Self {
+        let HalfBand { partial, even, .. } = front.half_band[mic];
+        Self { partial, even, dc: front.dc[mic], z: zigzag_of_abs(peak) }
+    }
+
+    /// The output of the pair (`a`, `b`) of TDM words.
+    #[inline(always)]
+    fn push(&mut self, a: i32, b: i32) -> i32 {
+        let y = half_band(&mut self.partial, &mut self.even, a >> 6, b >> 6);
+        let y = FrontEnd::step(&mut self.dc, DECIMATED_DC_SHIFT - 1, y);
+        self.z = self.z.max(((y << 1) ^ (y >> 31)) as u32);
+        y
+    }
+
+    /// Writes the state back; returns the peak.
+    #[inline(always)]
+    fn store(self, front: &mut FrontEnd, mic: usize) -> u32 {
+        front.dc[mic] = self.dc;
+        front.half_band[mic].partial = self.partial;
+        front.half_band[mic].even = self.even;
+        (self.z >> 1) + (self.z & 1)
+    }
+}
 
 /// Per-microphone DC removal (and spatial decimation) state and the clip counter.
 ///
@@ -152,7 +194,7 @@ impl FrontEnd {
             }
             let h = &mut self.half_band[mic];
             if second {
-                let y = half_band(&mut h.odd, &mut h.even, h.pending, x >> 6);
+                let y = half_band(&mut h.partial, &mut h.even, h.pending, x >> 6);
                 let y = Self::step(&mut self.dc[mic], k1, y);
                 *peak = (*peak).max(y.unsigned_abs());
                 out(mic, y);
@@ -164,10 +206,43 @@ impl FrontEnd {
         second
     }
 
+    /// Counts the clipped words of microphones `0..mics` in whole TDM frames (`frames`, `slots`
+    /// words each) into [`Self::clipped`]. [`Self::decimate_frames`] leaves this to the caller,
+    /// once per run of frames.
+    ///
+    /// One contiguous pass ORs every word's ones'-complement magnitude `x ^ (x >> 31)`: below
+    /// [`CLIP_SCREEN`] no word was clipped (2 instructions per word, where counting takes 4).
+    /// Only otherwise (a word near full scale, or a loud run whose magnitudes happen to OR up to
+    /// it) are the words counted one by one.
+    pub fn count_clipped(&mut self, frames: &[i32], slots: usize, mics: usize) {
+        let magnitude = |x: i32| (x ^ (x >> 31)) as u32;
+        let (eights, rest) = frames.as_chunks::<8>();
+        let screen = eights.iter().fold(0u32, |acc, w| {
+            let a = (magnitude(w[0]) | magnitude(w[1])) | (magnitude(w[2]) | magnitude(w[3]));
+            let b = (magnitude(w[4]) | magnitude(w[5])) | (magnitude(w[6]) | magnitude(w[7]));
+            acc | a | b
+        });
+        let screen = rest.iter().fold(screen, |acc, &x| acc | magnitude(x));
+        if screen < CLIP_SCREEN || slots == 0 {
+            return;
+        }
+        // About 5 instructions per word when every slot is a microphone (as with 8 on 8 slots):
+        // a loud run that passes the screen costs about what counting alone cost before.
+        let is_clipped = |x: i32| u32::from(x >= CLIP_LEVEL || x <= -CLIP_LEVEL);
+        let whole = frames.len() - frames.len() % slots;
+        let clipped = if mics >= slots {
+            frames[..whole].iter().map(|&x| is_clipped(x)).sum::<u32>()
+        } else {
+            let frames = frames.chunks_exact(slots);
+            frames.map(|f| f[..mics].iter().map(|&x| is_clipped(x)).sum::<u32>()).sum()
+        };
+        self.clipped = self.clipped.saturating_add(clipped);
+    }
+
     /// De-interleaves microphone `mic` from an even number of whole TDM frames (`frames`,
     /// `slots` words each, starting a half-band pair) into `out` (one sample per two frames),
-    /// decimating and removing DC; counts clipped words and raises `peak` to the largest
-    /// absolute output.
+    /// decimating and removing DC; raises `peak` to the largest absolute output. Clipping is
+    /// not counted here: see [`Self::count_clipped`].
     pub fn decimate_frames(
         &mut self,
         mic: usize,
@@ -176,26 +251,30 @@ impl FrontEnd {
         out: &mut [i32],
         peak: &mut u32,
     ) {
-        let k1 = DECIMATED_DC_SHIFT - 1;
         if mic >= slots || mic >= MAX_MICS {
             return;
         }
-        let mut dc = self.dc[mic];
-        let HalfBand { mut odd, mut even, .. } = self.half_band[mic];
-        let (mut p, mut clipped) = (*peak, 0u32);
-        for (o, pair) in out.iter_mut().zip(frames.chunks_exact(2 * slots)) {
-            let (a, b) = (pair[mic], pair[slots + mic]);
-            clipped += u32::from(a >= CLIP_LEVEL || a <= -CLIP_LEVEL);
-            clipped += u32::from(b >= CLIP_LEVEL || b <= -CLIP_LEVEL);
-            let y = Self::step(&mut dc, k1, half_band(&mut odd, &mut even, a >> 6, b >> 6));
-            p = p.max(y.unsigned_abs());
-            *o = y;
+        let mut lane = Lane::load(self, mic, *peak);
+        if slots == 8 {
+            // The firmware's layout (8-slot frames): constant offsets, two outputs per step
+            // (after two pairs the half-band state is all new values: no register moves).
+            let n = out.len().min(frames.len() / 16);
+            let (out, _) = out.split_at_mut(n);
+            let (quads, _) = frames.as_chunks::<32>();
+            let (twos, tail) = out.as_chunks_mut::<2>();
+            for (o, w) in twos.iter_mut().zip(quads) {
+                o[0] = lane.push(w[mic], w[8 + mic]);
+                o[1] = lane.push(w[16 + mic], w[24 + mic]);
+            }
+            if let ([o], Some(w)) = (tail, frames.get((n.max(1) - 1) * 16..)) {
+                *o = lane.push(w[mic], w[8 + mic]);
+            }
+        } else {
+            for (o, p) in out.iter_mut().zip(frames.chunks_exact(2 * slots)) {
+                *o = lane.push(p[mic], p[slots + mic]);
+            }
         }
-        self.dc[mic] = dc;
-        self.half_band[mic].odd = odd;
-        self.half_band[mic].even = even;
-        self.clipped = self.clipped.saturating_add(clipped);
-        *peak = p;
+        *peak = lane.store(self, mic);
     }
 
     #[inline(always)]
@@ -271,6 +350,14 @@ impl FrontEnd {
     }
 }
 
+/// The zigzag code `2|y| − (y < 0)` of the largest of the magnitudes `peak` (0 for 0): its
+/// `(z >> 1) + (z & 1)` is `peak` again, for every `peak` up to 2^31.
+#[inline(always)]
+fn zigzag_of_abs(peak: u32) -> u32 {
+    // A positive y = peak codes as 2·peak; peak = 2^31 (only −2^31) as 2^32 − 1.
+    peak.wrapping_mul(2).wrapping_sub(u32::from(peak == 1 << 31))
+}
+
 /// Block shift for the largest absolute Q31 sample of a block: the left shift that puts the
 /// peak just below full scale, at most [`MAX_BLOCK_SHIFT`].
 ///
@@ -301,6 +388,28 @@ pub fn to_q15(q31: i32, shift: u32) -> i16 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn clip_screen_and_zigzag_peak_are_exact_at_the_edges() {
+        // Every clipped word's ones'-complement magnitude reaches the screen; words two LSB
+        // inside the clip level stay below it (CLIP_LEVEL − 1 itself passes the screen and is
+        // then counted, exactly, as not clipped).
+        for x in [CLIP_LEVEL, -CLIP_LEVEL, i32::MAX, i32::MIN, i32::MIN + 1, -CLIP_LEVEL - 1] {
+            assert!((x ^ (x >> 31)) as u32 >= CLIP_SCREEN, "{x:#x}");
+        }
+        for x in [CLIP_LEVEL - 2, -(CLIP_LEVEL - 2), 0, -1] {
+            assert!(((x ^ (x >> 31)) as u32) < CLIP_SCREEN, "{x:#x}");
+        }
+        // The zigzag code orders |y| and decodes to it, from either a sample or a peak.
+        let zigzag = |y: i32| ((y << 1) ^ (y >> 31)) as u32;
+        let decode = |z: u32| (z >> 1) + (z & 1);
+        for y in [0, 1, -1, 2, -2, 0x4000_0000, -0x4000_0000, i32::MAX, i32::MIN, i32::MIN + 1] {
+            assert_eq!(decode(zigzag(y)), y.unsigned_abs(), "{y:#x}");
+            assert_eq!(decode(zigzag_of_abs(y.unsigned_abs())), y.unsigned_abs(), "{y:#x}");
+            assert!(zigzag(y) <= zigzag_of_abs(y.unsigned_abs()), "{y:#x}");
+            assert!(zigzag(-y.saturating_abs()) <= zigzag(y.saturating_abs()), "{y:#x}");
+        }
+    }
 
     #[test]
     fn q15_round_trip_keeps_relative_level() {

@@ -7,7 +7,7 @@
 //! `health_interval_blocks` blocks (about 1 per second at 48 kHz). A `Doa` is left out when
 //! fewer than two pairs, spanning the plane, carry a coherent peak (silence, a single tone).
 //!
-//! Memory is fixed: `size_of::<Pipeline>()` is 117 488 bytes on the Cortex-M4F (the
+//! Memory is fixed: `size_of::<Pipeline>()` is 117 456 bytes on the Cortex-M4F (the
 //! `memory_budget` test keeps it ≤ 128 KiB), all of it in the struct, nothing on the heap and
 //! only small temporaries on the stack (992 bytes deep for `push`). The
 //! struct is `const`-constructible ([`Pipeline::empty`]) so the firmware can place it in a
@@ -161,7 +161,7 @@ impl Pipeline {
         }
     }
 
-    /// A configured pipeline by value (117 488 bytes: prefer [`Pipeline::empty`] +
+    /// A configured pipeline by value (117 456 bytes: prefer [`Pipeline::empty`] +
     /// [`Pipeline::configure`] in place on small stacks).
     pub fn new(config: &Config) -> Result<Self, ConfigError> {
         let mut p = Self::empty();
@@ -262,6 +262,9 @@ impl Pipeline {
             };
             if runs > 0 {
                 let (now, rest) = words.split_at(runs * d * slots);
+                if d != 1 {
+                    self.front.count_clipped(now, slots, self.mics);
+                }
                 for (mic, ch) in self.block[..self.mics].iter_mut().enumerate() {
                     let out = &mut ch[self.fill..self.fill + runs];
                     if d == 1 {

@@ -171,3 +171,63 @@ fn mfcc_outputs_follow_the_bpf_analyses_and_find_the_comb() {
     let mut p = Pipeline::new(&config).unwrap();
     assert!(!common::run(&mut p, &words).iter().any(|o| matches!(o, Output::Mfcc(_))));
 }
+
+#[test]
+fn whole_frame_runs_count_clipping_and_peaks_like_the_frame_by_frame_path() {
+    // Loud noise with words at and around the clip thresholds (|x| ≥ 0x7FFF_FE00 counts,
+    // 0x7FFF_FDFF and −0x7FFF_FDFF do not) and at both ends of the i32 range, in every slot of
+    // an 8-mic circle. Pushed whole, the runs of frames take the decimation loop with its
+    // clip screen and zigzag peak; pushed word by word, every frame takes the frame-by-frame
+    // path that counts each word. Health (clipped words, peak) and every other output must
+    // agree bit for bit.
+    let specials = [
+        0x7FFF_FE00,
+        0x7FFF_FDFF,
+        -0x7FFF_FE00,
+        -0x7FFF_FDFF,
+        -0x7FFF_FE01,
+        i32::MAX,
+        i32::MIN,
+        i32::MIN + 1,
+        0x4000_0000,
+        -0x4000_0000,
+    ];
+    let mut rng = Rng::new(7);
+    let frames = 49_152 + 2048;
+    let mut words = Vec::with_capacity(8 * frames);
+    for t in 0..frames {
+        for slot in 0..8 {
+            let r = rng.next_u64();
+            // A stretch of loud noise without specials, then specials now and then: both
+            // sides of the screen.
+            let loud = ((r >> 8) as u32 as i32) >> (1 + (t / 4096) % 3);
+            let w = if t > 8192 && r % 97 == slot as u64 {
+                specials[(r >> 40) as usize % specials.len()]
+            } else {
+                loud
+            };
+            words.push(w);
+        }
+    }
+    let config = Config::new(Geometry::circle_8mic(), 48_000);
+    let mut whole = Pipeline::new(&config).unwrap();
+    let mut a = Vec::new();
+    whole.push(&words, &mut |o| a.push(o));
+    let mut single = Pipeline::new(&config).unwrap();
+    let mut b = Vec::new();
+    for w in &words {
+        single.push(core::slice::from_ref(w), &mut |o| b.push(o));
+    }
+    // Runs of an odd number of frame pairs (7 frames per push: 3 pairs, then a split pair).
+    let mut odd = Pipeline::new(&config).unwrap();
+    let mut c = Vec::new();
+    for chunk in words.chunks(7 * 8) {
+        odd.push(chunk, &mut |o| c.push(o));
+    }
+    let health: Vec<_> =
+        a.iter().filter_map(|o| if let Output::Health(h) = o { Some(*h) } else { None }).collect();
+    assert_eq!(health.len(), 1);
+    assert!(health[0].clipped_samples > 100, "{:?}", health[0]);
+    assert_eq!(a, b);
+    assert_eq!(c, b);
+}
