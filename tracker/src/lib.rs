@@ -14,7 +14,9 @@
 //! - [`serve`]: the live map in the browser (`--serve`);
 //! - [`profile`], [`site`]: drone profiles and site files (TOML);
 //! - [`id`]: is a drone in a recording, and which type (`aim id`);
-//! - [`output`]: fixes to other systems (MAVLink to an autopilot, in the site's NED frame).
+//! - [`output`]: fixes to other systems (MAVLink to an autopilot, in the site's NED frame);
+//! - [`multi`]: several arrays (§9): beacon clock sync, multilateration, array selection,
+//!   complementary fusion, DoA-ray triangulation (library pieces, not yet in the pipeline).
 #![warn(missing_docs)]
 
 pub mod config;
@@ -29,6 +31,7 @@ pub mod iqr;
 pub mod linalg;
 pub mod link;
 pub mod motion;
+pub mod multi;
 pub mod observation;
 pub mod output;
 pub mod profile;

@@ -24,6 +24,13 @@
 //!
 //! [[obstacle]]                 # optional, informative: name, min, max, loss_db
 //!
+//! [[beacon]]                   # optional: a loudspeaker of the clock sync (crate::multi::clock)
+//! id = 1                       # 0–255, unique among beacons
+//! position = [8.0, 0.2, 1.5]   # loudspeaker, world ENU m (surveyed)
+//! period_s = 1.0               # nominal repetition period on the speaker's clock, s
+//! sequence = "aim-beacon-v1"   # name of the aim_dsp::beacon sequence
+//! level_db = 60.0              # optional, informative: dB SPL at 1 m
+//!
 //! [origin]                     # optional: the local NED frame of `--mavlink`
 //! position = [0.0, 0.0, 0.0]   # (see crate::output::ned)
 //! x_axis_from_north_deg = 90.0
@@ -31,7 +38,9 @@
 //! This is a superset of the `site.toml` that `host-sim simulate` writes. Every number is
 //! range-checked at its line: positions within [`MAX_COORDINATE_M`] and inside the room (with
 //! [`ROOM_TOLERANCE_M`]), angles within ±360°, offsets within [`MAX_CLOCK_OFFSET_S`], drifts
-//! within [`MAX_CLOCK_DRIFT_PPM`], ids 0–255 (the wire's), sample rate 1–384 kHz.
+//! within [`MAX_CLOCK_DRIFT_PPM`], ids 0–255 (the wire's), sample rate 1–384 kHz, speed of sound
+//! within [`SPEED_OF_SOUND_RANGE_MPS`], beacon periods within [`BEACON_PERIOD_RANGE_S`] and levels
+//! within [`BEACON_LEVEL_RANGE_DB`].
 //! The array frame is x right, y forward, z up along the array normal; the rotation from the
 //! array frame to the world is R = Rz(yaw)·Ry(pitch)·Rx(roll).
 
@@ -118,6 +127,21 @@ pub struct Room {
     pub max: [f64; 3],
 }
 
+/// A beacon loudspeaker of the clock sync (issue 14): where it is and what it plays.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BeaconSpec {
+    /// Beacon id.
+    pub id: u8,
+    /// Loudspeaker position, world ENU m.
+    pub position: [f64; 3],
+    /// Nominal repetition period on the speaker's own clock, s.
+    pub period_s: f64,
+    /// Name of the emitted sequence (`aim_dsp::beacon`).
+    pub sequence: String,
+    /// Emitted level, dB SPL at 1 m, if given (information only).
+    pub level_db: Option<f64>,
+}
+
 /// A site: arrays and, optionally, the room.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Site {
@@ -129,14 +153,42 @@ pub struct Site {
     pub sample_rate_hz: Option<u32>,
 }
 
+/// What a site file says for the clock sync of several arrays: the beacons and the speed of
+/// sound. (Kept beside [`Site`] rather than in it because other crates build `Site` literals.)
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct SiteSync {
+    /// Speed of sound at the site, m/s, if given.
+    pub speed_of_sound_mps: Option<f64>,
+    /// The beacon loudspeakers, in file order (empty: no clock sync).
+    pub beacons: Vec<BeaconSpec>,
+}
+
+impl SiteSync {
+    /// Reads and checks a site file (all of it, as [`Site::load`] does).
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        Self::parse(&read_text(path)?, path)
+    }
+
+    /// Parses and checks site TOML `text` (`path` names it in errors), all of it.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        Ok(parse_site(text, path)?.1)
+    }
+
+    /// The beacon with this id.
+    pub fn beacon(&self, id: u8) -> Option<&BeaconSpec> {
+        self.beacons.iter().find(|b| b.id == id)
+    }
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SiteFile {
     sample_rate_hz: Option<u32>,
-    #[allow(dead_code)]
-    speed_of_sound_mps: Option<f64>,
+    speed_of_sound_mps: Option<toml::Spanned<f64>>,
     #[serde(default)]
     array: Vec<toml::Spanned<ArrayEntry>>,
+    #[serde(default)]
+    beacon: Vec<toml::Spanned<BeaconEntry>>,
     room: Option<toml::Spanned<RoomEntry>>,
     #[serde(default)]
     #[allow(dead_code)]
@@ -159,6 +211,23 @@ struct ArrayEntry {
     clock_offset_s: Option<toml::Spanned<f64>>,
     clock_drift_ppm: Option<toml::Spanned<f64>>,
 }
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BeaconEntry {
+    id: toml::Spanned<u16>,
+    position: toml::Spanned<[f64; 3]>,
+    period_s: toml::Spanned<f64>,
+    sequence: toml::Spanned<String>,
+    level_db: Option<toml::Spanned<f64>>,
+}
+
+/// Speeds of sound a site may give, m/s (air from about −55 °C to +100 °C).
+pub const SPEED_OF_SOUND_RANGE_MPS: std::ops::RangeInclusive<f64> = 290.0..=390.0;
+/// Beacon repetition periods a site may give, s.
+pub const BEACON_PERIOD_RANGE_S: std::ops::RangeInclusive<f64> = 0.05..=60.0;
+/// Beacon levels a site may give, dB SPL at 1 m.
+pub const BEACON_LEVEL_RANGE_DB: std::ops::RangeInclusive<f64> = 0.0..=140.0;
 
 /// Largest coordinate a site accepts, m: arrays and rooms lie within 10 km of the origin (far
 /// beyond any acoustic range; beyond about 1e15 m the filter's arithmetic breaks down).
@@ -284,6 +353,76 @@ fn array_pose(
     Ok(pose)
 }
 
+/// Checks one `[[beacon]]` table (each value at its own line); `earlier` are the beacons
+/// before it (for duplicate ids).
+fn beacon_spec(
+    b: &BeaconEntry,
+    earlier: &[BeaconSpec],
+    room: Option<&Room>,
+    err: &impl Fn(std::ops::Range<usize>, String) -> ConfigError,
+) -> Result<BeaconSpec, ConfigError> {
+    let id = *b.id.get_ref();
+    let Ok(id) = u8::try_from(id) else {
+        return Err(err(b.id.span(), format!("beacon id {id}: ids are 0 to 255")));
+    };
+    if earlier.iter().any(|e| e.id == id) {
+        return Err(err(b.id.span(), format!("beacon id {id} appears twice")));
+    }
+    let position = *b.position.get_ref();
+    if !position.iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M) {
+        return Err(err(
+            b.position.span(),
+            format!(
+                "beacon {id}: position must be finite and within {MAX_COORDINATE_M} m of the origin (got {position:?})"
+            ),
+        ));
+    }
+    if let Some(room) = room {
+        if (0..3).any(|i| {
+            position[i] < room.min[i] - ROOM_TOLERANCE_M
+                || position[i] > room.max[i] + ROOM_TOLERANCE_M
+        }) {
+            return Err(err(
+                b.position.span(),
+                format!(
+                    "beacon {id}: position {position:?} is outside the room {:?}..{:?}",
+                    room.min, room.max
+                ),
+            ));
+        }
+    }
+    let period_s = *b.period_s.get_ref();
+    if !BEACON_PERIOD_RANGE_S.contains(&period_s) {
+        return Err(err(
+            b.period_s.span(),
+            format!(
+                "beacon {id}: period_s must be {:?} to {:?} s (got {period_s:?})",
+                BEACON_PERIOD_RANGE_S.start(),
+                BEACON_PERIOD_RANGE_S.end()
+            ),
+        ));
+    }
+    let sequence = b.sequence.get_ref().trim().to_string();
+    if sequence.is_empty() {
+        return Err(err(b.sequence.span(), format!("beacon {id}: sequence must name a sequence")));
+    }
+    let level_db = match &b.level_db {
+        Some(l) if !BEACON_LEVEL_RANGE_DB.contains(l.get_ref()) => {
+            return Err(err(
+                l.span(),
+                format!(
+                    "beacon {id}: level_db must be {:?} to {:?} dB SPL (got {:?})",
+                    BEACON_LEVEL_RANGE_DB.start(),
+                    BEACON_LEVEL_RANGE_DB.end(),
+                    l.get_ref()
+                ),
+            ))
+        }
+        l => l.as_ref().map(|l| *l.get_ref()),
+    };
+    Ok(BeaconSpec { id, position, period_s, sequence, level_db })
+}
+
 impl Site {
     /// Reads and checks a site file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
@@ -292,86 +431,112 @@ impl Site {
 
     /// Parses and checks site TOML `text` (`path` names it in errors).
     pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
-        let file: SiteFile = parse_toml(text, path)?;
-        let err = |span: std::ops::Range<usize>, message: String| ConfigError {
-            path: path.to_path_buf(),
-            line: Some(line_of(text, span.start)),
-            message,
-        };
-        if file.array.is_empty() {
-            return Err(ConfigError {
-                path: path.to_path_buf(),
-                line: None,
-                message: "no [[array]] table: a site needs at least one array".into(),
-            });
-        }
-        let mut arrays: Vec<ArrayPose> = Vec::new();
-        for entry in &file.array {
-            arrays.push(array_pose(entry.get_ref(), &arrays, &err)?);
-        }
-        let room = match &file.room {
-            Some(r) => {
-                let e = r.get_ref();
-                let (min, max) = match (e.min, e.max, e.size) {
-                    (Some(min), Some(max), None) => (min, max),
-                    (None, None, Some(size)) => ([0.0; 3], size),
-                    _ => {
-                        return Err(err(
-                            r.span(),
-                            "room: give either `min` and `max`, or `size`".into(),
-                        ))
-                    }
-                };
-                if (0..3).any(|i| !(min[i].is_finite() && max[i].is_finite() && min[i] < max[i])) {
-                    return Err(err(
-                        r.span(),
-                        "room: every min must be below its max (sizes positive)".into(),
-                    ));
-                }
-                if min.iter().chain(&max).any(|v| v.abs() > MAX_COORDINATE_M) {
-                    return Err(err(
-                        r.span(),
-                        format!("room: corners must lie within {MAX_COORDINATE_M} m of the origin"),
-                    ));
-                }
-                Some(Room { min, max })
-            }
-            None => None,
-        };
-        if let Some(room) = &room {
-            for (entry, pose) in file.array.iter().zip(&arrays) {
-                let outside = (0..3).any(|i| {
-                    pose.position[i] < room.min[i] - ROOM_TOLERANCE_M
-                        || pose.position[i] > room.max[i] + ROOM_TOLERANCE_M
-                });
-                if outside {
-                    return Err(err(
-                        entry.get_ref().position.span(),
-                        format!(
-                            "array {}: position {:?} is outside the room {:?}..{:?}",
-                            pose.id, pose.position, room.min, room.max
-                        ),
-                    ));
-                }
-            }
-        }
-        if let Some(fs) = file.sample_rate_hz.filter(|fs| !(1_000..=384_000).contains(fs)) {
-            return Err(ConfigError {
-                path: path.to_path_buf(),
-                line: text
-                    .lines()
-                    .position(|l| l.trim_start().starts_with("sample_rate_hz"))
-                    .map(|i| i + 1),
-                message: format!("sample_rate_hz must be 1000 to 384000 Hz (got {fs})"),
-            });
-        }
-        Ok(Self { arrays, room, sample_rate_hz: file.sample_rate_hz })
+        Ok(parse_site(text, path)?.0)
     }
 
     /// The array with this id.
     pub fn array(&self, id: u16) -> Option<&ArrayPose> {
         self.arrays.iter().find(|a| a.id == id)
     }
+}
+
+/// Parses and checks a whole site file.
+fn parse_site(text: &str, path: &Path) -> Result<(Site, SiteSync), ConfigError> {
+    let file: SiteFile = parse_toml(text, path)?;
+    let err = |span: std::ops::Range<usize>, message: String| ConfigError {
+        path: path.to_path_buf(),
+        line: Some(line_of(text, span.start)),
+        message,
+    };
+    if file.array.is_empty() {
+        return Err(ConfigError {
+            path: path.to_path_buf(),
+            line: None,
+            message: "no [[array]] table: a site needs at least one array".into(),
+        });
+    }
+    let mut arrays: Vec<ArrayPose> = Vec::new();
+    for entry in &file.array {
+        arrays.push(array_pose(entry.get_ref(), &arrays, &err)?);
+    }
+    let room = match &file.room {
+        Some(r) => {
+            let e = r.get_ref();
+            let (min, max) = match (e.min, e.max, e.size) {
+                (Some(min), Some(max), None) => (min, max),
+                (None, None, Some(size)) => ([0.0; 3], size),
+                _ => {
+                    return Err(err(
+                        r.span(),
+                        "room: give either `min` and `max`, or `size`".into(),
+                    ))
+                }
+            };
+            if (0..3).any(|i| !(min[i].is_finite() && max[i].is_finite() && min[i] < max[i])) {
+                return Err(err(
+                    r.span(),
+                    "room: every min must be below its max (sizes positive)".into(),
+                ));
+            }
+            if min.iter().chain(&max).any(|v| v.abs() > MAX_COORDINATE_M) {
+                return Err(err(
+                    r.span(),
+                    format!("room: corners must lie within {MAX_COORDINATE_M} m of the origin"),
+                ));
+            }
+            Some(Room { min, max })
+        }
+        None => None,
+    };
+    if let Some(room) = &room {
+        for (entry, pose) in file.array.iter().zip(&arrays) {
+            let outside = (0..3).any(|i| {
+                pose.position[i] < room.min[i] - ROOM_TOLERANCE_M
+                    || pose.position[i] > room.max[i] + ROOM_TOLERANCE_M
+            });
+            if outside {
+                return Err(err(
+                    entry.get_ref().position.span(),
+                    format!(
+                        "array {}: position {:?} is outside the room {:?}..{:?}",
+                        pose.id, pose.position, room.min, room.max
+                    ),
+                ));
+            }
+        }
+    }
+    if let Some(fs) = file.sample_rate_hz.filter(|fs| !(1_000..=384_000).contains(fs)) {
+        return Err(ConfigError {
+            path: path.to_path_buf(),
+            line: text
+                .lines()
+                .position(|l| l.trim_start().starts_with("sample_rate_hz"))
+                .map(|i| i + 1),
+            message: format!("sample_rate_hz must be 1000 to 384000 Hz (got {fs})"),
+        });
+    }
+    let speed_of_sound_mps = match &file.speed_of_sound_mps {
+        Some(c) if !SPEED_OF_SOUND_RANGE_MPS.contains(c.get_ref()) => {
+            return Err(err(
+                c.span(),
+                format!(
+                    "speed_of_sound_mps must be {:?} to {:?} m/s (got {:?})",
+                    SPEED_OF_SOUND_RANGE_MPS.start(),
+                    SPEED_OF_SOUND_RANGE_MPS.end(),
+                    c.get_ref()
+                ),
+            ))
+        }
+        c => c.as_ref().map(|c| *c.get_ref()),
+    };
+    let mut beacons: Vec<BeaconSpec> = Vec::new();
+    for entry in &file.beacon {
+        beacons.push(beacon_spec(entry.get_ref(), &beacons, room.as_ref(), &err)?);
+    }
+    Ok((
+        Site { arrays, room, sample_rate_hz: file.sample_rate_hz },
+        SiteSync { speed_of_sound_mps, beacons },
+    ))
 }
 
 #[cfg(test)]
@@ -443,6 +608,47 @@ loss_db = 15.0
 
         let e = Site::load(Path::new("/nonexistent/site.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/site.toml: cannot read"), "{e}");
+    }
+
+    #[test]
+    fn reads_beacons_and_refuses_bad_ones_at_their_line() {
+        let base = "speed_of_sound_mps = 343.2\n[[array]]\nid = 1\nposition = [1.0, 1.0, 0.0]\n\n[room]\nsize = [10.0, 10.0, 3.0]\n\n[[beacon]]\nid = 1\nposition = [8.0, 0.2, 1.5]\nperiod_s = 1.0\nsequence = \"aim-beacon-v1\"\nlevel_db = 60.0\n";
+        Site::parse(base, Path::new("s.toml")).unwrap();
+        let site = SiteSync::parse(base, Path::new("s.toml")).unwrap();
+        assert_eq!(site.speed_of_sound_mps, Some(343.2));
+        let b = site.beacon(1).unwrap();
+        assert_eq!(b.position, [8.0, 0.2, 1.5]);
+        assert_eq!(
+            (b.period_s, b.sequence.as_str(), b.level_db),
+            (1.0, "aim-beacon-v1", Some(60.0))
+        );
+        // Without beacons and speed of sound: both absent.
+        let plain =
+            SiteSync::parse("[[array]]\nid = 1\nposition = [1.0, 1.0, 0.0]\n", Path::new("p"))
+                .unwrap();
+        assert!(plain.beacons.is_empty() && plain.speed_of_sound_mps.is_none());
+        let cases: &[(&str, &str, usize, &str)] = &[
+            ("period_s = 1.0", "period_s = 0.0", 12, "period_s must be"),
+            ("level_db = 60.0", "level_db = 900.0", 14, "level_db must be"),
+            ("position = [8.0, 0.2, 1.5]", "position = [8.0, 20.0, 1.5]", 11, "outside the room"),
+            ("position = [8.0, 0.2, 1.5]", "position = [nan, 0.2, 1.5]", 11, "must be finite"),
+            ("sequence = \"aim-beacon-v1\"", "sequence = \" \"", 13, "must name a sequence"),
+            ("sequence = \"aim-beacon-v1\"", "sequenc = \"x\"", 13, "sequenc"),
+            ("period_s = 1.0", "period_s = 1.0\nclock_offset_s = 0.2", 13, "clock_offset_s"),
+            ("id = 1\nposition = [8.0", "id = 256\nposition = [8.0", 10, "ids are 0 to 255"),
+            ("speed_of_sound_mps = 343.2", "speed_of_sound_mps = 3432.0", 1, "speed_of_sound_mps"),
+        ];
+        for (from, to, line, message) in cases {
+            let text = base.replace(from, to);
+            assert_ne!(text, base, "{from}");
+            let e = Site::parse(&text, Path::new("s.toml")).unwrap_err();
+            assert_eq!(e.line, Some(*line), "{to}: {e}");
+            assert!(e.message.contains(message), "{to}: {e}");
+        }
+        let twice = format!("{base}\n[[beacon]]\nid = 1\nposition = [1.0, 1.0, 1.0]\nperiod_s = 2.0\nsequence = \"s\"\n");
+        let e = Site::parse(&twice, Path::new("s.toml")).unwrap_err();
+        assert_eq!(e.line, Some(17), "{e}");
+        assert!(e.message.contains("beacon id 1 appears twice"), "{e}");
     }
 
     /// Every site input of issue 17 that used to be accepted (or to reach the filter as NaN)
