@@ -254,7 +254,8 @@ impl ClockModel {
     }
 
     /// The model of a site's first beacon: its position and period, the site's arrays (ids
-    /// above 255 cannot send frames and are left out), speed of sound and sample rate (the
+    /// above 255 cannot send frames and are left out; each heard at its microphone 0 when the
+    /// site lists the microphones, else at its centre), speed of sound and sample rate (the
     /// defaults where the site gives none). `None` without a beacon.
     pub fn from_site(
         site: &crate::site::Site,
@@ -268,10 +269,19 @@ impl ClockModel {
             ..config
         };
         let c = sync.speed_of_sound_mps.unwrap_or(crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS);
+        // A BEACON frame times the arrival at microphone 0 (aim-dsp `beacon`): where the site
+        // gives the microphones, that is where the array hears the beacon.
+        let heard_at = |a: &crate::site::ArrayPose| match a.mic_positions_m.first() {
+            Some(&[x, y]) => {
+                let m = a.to_world([x, y, 0.0]);
+                [a.position[0] + m[0], a.position[1] + m[1], a.position[2] + m[2]]
+            }
+            None => a.position,
+        };
         let arrays: Vec<(u8, [f64; 3])> = site
             .arrays
             .iter()
-            .filter_map(|a| u8::try_from(a.id).ok().map(|id| (id, a.position)))
+            .filter_map(|a| u8::try_from(a.id).ok().map(|id| (id, heard_at(a))))
             .collect();
         Some(Self::new(config, beacon.position, c, &arrays))
     }
