@@ -142,7 +142,7 @@ impl<R: Read> Merged<R> {
                         // at an instant behind the audio sent before it: it goes with the
                         // recording's current key and says nothing of its continuity (two in a
                         // row would otherwise read as a reboot).
-                        let key = if crate::intake::frame_end(&f) == f.header.sample_index {
+                        let key = if matches!(f.body, Body::Hello(_) | Body::Health(_)) {
                             input.key_s
                         } else {
                             input.key(end_s(&f, input.rate_hz))
