@@ -32,8 +32,9 @@
 //! ```
 //!
 //! Array frame: x right, y forward, z up (normal); azimuth from +x towards +y, zenith from +z.
-//! A reader needs `id`, `positions` (or a known `geometry`), `position` and `yaw_deg`; the rest
-//! is information.
+//! A reader needs `id`, `positions` (or a known `geometry`), `position`, `yaw_deg` and
+//! `roll_deg` (180 for an array facing down; a reader that ignores it mirrors that array's
+//! bearings); the rest is information.
 //!
 //! Only what a real site knows goes here: the arrays' clock offsets and drifts and the drone's
 //! airframe are simulation truth (`truth.toml`, [`crate::truth::Truth::to_toml`]); the tracker
@@ -130,7 +131,7 @@ impl Site {
         let body = toml::to_string(self).context("serializing the site")?;
         Ok(format!(
             "# AIM site file written by host-sim. ENU metres; yaw_deg in degrees from +x towards +y;\n\
-             # arrays face up; microphone positions in the array frame (x right, y forward).\n{body}"
+             # arrays face up unless roll_deg = 180 (facing down); microphone positions in the array frame (x right, y forward).\n{body}"
         ))
     }
 

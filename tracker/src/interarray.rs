@@ -178,7 +178,18 @@ impl SnippetStore {
         config: &DelayConfig,
     ) -> Option<InterArrayDelay> {
         if std::env::var("AIM_DEBUG").is_ok() {
-            eprintln!("delay p {p} q {q}: streams {:?}", self.streams.iter().map(|(k, v)| (*k, v.frames.len(), v.frames.front().map(|f| f.0), v.frames.back().map(|f| f.0))).collect::<Vec<_>>());
+            eprintln!(
+                "delay p {p} q {q}: streams {:?}",
+                self.streams
+                    .iter()
+                    .map(|(k, v)| (
+                        *k,
+                        v.frames.len(),
+                        v.frames.front().map(|f| f.0),
+                        v.frames.back().map(|f| f.0)
+                    ))
+                    .collect::<Vec<_>>()
+            );
         }
         let (sp, sq) = (self.streams.get(&p)?, self.streams.get(&q)?);
         let near_q = sq.frames.back()?.0 as f64;

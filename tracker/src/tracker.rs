@@ -10,11 +10,13 @@ use crate::doa::{DoaConfig, DoaState, DoaWindow};
 use crate::doppler::{DopplerFrame, FrameCentre, DEFAULT_SPEED_OF_SOUND_MPS};
 use crate::dynamics::{sum_bpf_squared, AcousticSpeed, HoverCalibration, SpeedIntegrator};
 use crate::filter::{new_filter, Filter, FilterKind, RangeDifference, Step};
+use crate::interarray::{DelayConfig, Prior, SnippetStore};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
-use crate::interarray::{DelayConfig, Prior, SnippetStore};
-use crate::multi::clock::{ArrayClock, BeaconArrival, ClockConfig, ClockMap, ClockModel, SyncStatus};
+use crate::multi::clock::{
+    ArrayClock, BeaconArrival, ClockConfig, ClockMap, ClockModel, SyncStatus,
+};
 use crate::observation::{BeaconHeard, Bearing, BpfPeak, Input, Spectrum};
 use crate::profile::Profile;
 use crate::site::{Site, SiteSync};
@@ -99,9 +101,9 @@ pub struct TrackerConfig {
     /// inferred from one array's dynamics. Off: the other arrays' inputs are dropped.
     pub fuse_arrays: bool,
     /// With `fuse_arrays`: once the tracked array has sent nothing for this long while
-    /// another array sends bearings, that array takes over the track (its bearings, spectra
-    /// and motion class from then on; the filter's state and the hover calibration go on), s.
-    /// Less than `max_gap_s`, so the track does not restart.
+    /// another array sends bearings, that array takes over the track (its bearings and
+    /// spectra from then on; the filter's state, the motion classifier and the hover
+    /// calibration go on), s. Less than `max_gap_s`, so the track does not restart.
     pub failover_s: f64,
     /// With `fuse_arrays`: another array whose distance to the last fix is under this
     /// fraction of the tracked array's, heard for the last `handover_heard_s`, takes the track
@@ -482,7 +484,11 @@ impl Tracker {
         let t = input.t();
         let from = input.array_id();
         if std::env::var("AIM_DEBUG7").is_ok() && from == 1 && !matches!(input, Input::Snippet(_)) {
-            eprintln!("top1 {:?} t {t:.3} tracked {}", std::mem::discriminant(&input), self.array_id());
+            eprintln!(
+                "top1 {:?} t {t:.3} tracked {}",
+                std::mem::discriminant(&input),
+                self.array_id()
+            );
         }
         if let Input::Beacon(b) = &input {
             self.hear_beacon(b);
@@ -506,7 +512,7 @@ impl Tracker {
             if !(self.config.fuse_arrays && t.is_finite()) {
                 return Vec::new();
             }
-            if !((self.may_take_over(from, t) || self.nearer(from, t)) && self.take_over(from)) {
+            if !((self.may_take_over(from, t) || self.nearer(from, t)) && self.take_over(from, t)) {
                 if self.site.arrays.iter().any(|a| a.id == from) {
                     if self.others.len() == OTHERS_KEPT {
                         self.others.pop_front();
@@ -517,7 +523,11 @@ impl Tracker {
             }
         }
         if std::env::var("AIM_DEBUG7").is_ok() && from == 1 {
-            eprintln!("push1 {:?} t {t:.3} latest {:.3}", std::mem::discriminant(&input), self.latest_input_t);
+            eprintln!(
+                "push1 {:?} t {t:.3} latest {:.3}",
+                std::mem::discriminant(&input),
+                self.latest_input_t
+            );
         }
         if !t.is_finite() || t + 1e-9 < self.latest_input_t {
             return Vec::new();
@@ -604,21 +614,8 @@ impl Tracker {
         } else {
             t - c.failover_s
         };
-        // The array's audio spans, merged, must cover [since, t] (0.05 s of slack per join).
-        let mut reached = f64::NEG_INFINITY;
-        for &(_, from, to) in self.other_audio.iter().filter(|a| a.0 == array_id) {
-            if reached == f64::NEG_INFINITY {
-                if from > since + 0.05 {
-                    return false;
-                }
-                reached = to;
-            } else if from <= reached + 0.05 {
-                reached = reached.max(to);
-            } else if reached < t - 0.05 {
-                return false;
-            }
-        }
-        reached >= t - 0.3
+        // The array's audio spans, merged, must cover [since, t].
+        self.heard_all_along(array_id, since, t)
     }
 
     /// Whether `array_id` is much nearer the drone than the tracked array (under
@@ -638,20 +635,34 @@ impl Tracker {
         if d(other) >= c.handover_ratio * d(own) || t - self.last_takeover_t < c.handover_hold_s {
             return false;
         }
-        let heard_from = self
-            .other_audio
-            .iter()
-            .filter(|a| a.0 == array_id)
-            .map(|a| a.1)
-            .fold(f64::INFINITY, f64::min);
-        heard_from <= t - c.handover_heard_s
+        self.heard_all_along(array_id, t - c.handover_heard_s, t)
     }
 
-    /// `array_id` takes over the track from the tracked array, which has gone silent (a dead
-    /// link, a reboot): its direction window, motion class and spectra start afresh; the
-    /// filter (a world-frame state), the hover calibration and pattern, and the track go on.
-    /// Returns whether it did (`array_id` is in the site).
-    fn take_over(&mut self, array_id: u16) -> bool {
+    /// Whether `array_id`'s audio spans, merged, cover `[since, t]` (s; 0.05 s of slack per
+    /// join, the last 0.3 s may still be in flight).
+    fn heard_all_along(&self, array_id: u16, since: f64, t: f64) -> bool {
+        let mut reached = f64::NEG_INFINITY;
+        for &(_, from, to) in self.other_audio.iter().filter(|a| a.0 == array_id) {
+            if reached == f64::NEG_INFINITY {
+                if from > since + 0.05 {
+                    return false;
+                }
+                reached = to;
+            } else if from <= reached + 0.05 {
+                reached = reached.max(to);
+            } else if reached < t - 0.05 {
+                return false;
+            }
+        }
+        reached >= t - 0.3
+    }
+
+    /// `array_id` takes over the track at input time `t` (s) from the tracked array, which has
+    /// gone silent (a dead link, a reboot) or is much farther ([`Tracker::nearer`]): its
+    /// direction window, speed and wake estimators and spectra start afresh; the filter (a
+    /// world-frame state), the motion classifier, the hover calibration and pattern, and the
+    /// track go on. Returns whether it did (`array_id` is in the site).
+    fn take_over(&mut self, array_id: u16, t: f64) -> bool {
         let Some(index) = self.site.arrays.iter().position(|a| a.id == array_id) else {
             return false;
         };
@@ -672,7 +683,7 @@ impl Tracker {
         self.other_audio.retain(|a| a.0 != array_id);
         self.others.retain(|b| b.array_id != array_id);
         self.hover_run_s = 0.0;
-        self.last_takeover_t = self.latest_input_t;
+        self.last_takeover_t = t;
         self.takeovers = self.takeovers.wrapping_add(1);
         true
     }
@@ -704,10 +715,7 @@ impl Tracker {
             return;
         };
         let synced = |id: u8| {
-            clock
-                .status(id)
-                .filter(|s| s.status == SyncStatus::Synced)
-                .and_then(|s| s.map)
+            clock.status(id).filter(|s| s.status == SyncStatus::Synced).and_then(|s| s.map)
         };
         let Some(tracked_map) = synced(tracked) else { return };
         self.last_delays_t = t;
@@ -737,10 +745,8 @@ impl Tracker {
         };
         let config = DelayConfig { window_s: DELAYS_WINDOW_S, ..DelayConfig::default() };
         for &(p, ap, map_p) in arrays.iter().filter(|a| a.0 != q) {
-            let prior = Prior {
-                centre_s: (distance(ap) - distance(aq)) / c,
-                half_width_s: DELAYS_PRIOR_S,
-            };
+            let prior =
+                Prior { centre_s: (distance(ap) - distance(aq)) / c, half_width_s: DELAYS_PRIOR_S };
             let Some(d) = self.snippets.delay(
                 p,
                 q,
@@ -759,7 +765,14 @@ impl Tracker {
                 continue;
             }
             if std::env::var("AIM_DEBUG").is_ok() {
-                eprintln!("rd t {:.2} p {p} q {q} rd {:.3} pred {:.3} quality {:.2} margin {:.2}", t_then + (d.time_s - centre), c * d.delay_s, c * prior.centre_s, d.quality, d.margin);
+                eprintln!(
+                    "rd t {:.2} p {p} q {q} rd {:.3} pred {:.3} quality {:.2} margin {:.2}",
+                    t_then + (d.time_s - centre),
+                    c * d.delay_s,
+                    c * prior.centre_s,
+                    d.quality,
+                    d.margin
+                );
             }
             self.range_differences.push(RangeDifference {
                 t: t_then + (d.time_s - centre),
@@ -828,6 +841,7 @@ impl Tracker {
         self.last_output = None;
         self.hover_run_s = 0.0;
         self.others.clear();
+        self.last_position = None;
         self.resets = self.resets.wrapping_add(1);
     }
 
@@ -1211,7 +1225,8 @@ mod tests {
             sample_rate_hz: None,
         };
         let drone = [17.0, 3.0, 2.0];
-        let run = |config: TrackerConfig| {
+        // `gap`: array 2 unheard (no audio, no bearing) over these times, s.
+        let run = |config: TrackerConfig, gap: (f64, f64)| {
             let mut tracker =
                 Tracker::new(site.clone(), Profile::dji_mini_2(), FilterKind::Aim, config).unwrap();
             tracker.gate_on_audio();
@@ -1219,6 +1234,9 @@ mod tests {
             for k in 0..60 {
                 let t = f64::from(k) * 0.17;
                 for id in [1u16, 2] {
+                    if id == 2 && (gap.0..gap.1).contains(&t) {
+                        continue;
+                    }
                     let origin = if id == 1 { 0.0 } else { 20.0 };
                     let (az, zen) = angles_of([drone[0] - origin, drone[1], drone[2]]);
                     tracker.add_audio(id, t - 0.085, t + 0.085);
@@ -1238,11 +1256,20 @@ mod tests {
             (tracker.takeovers(), tracker.array_id(), taken_at)
         };
         let config = TrackerConfig::default();
-        let (takeovers, id, taken_at) = run(config.clone());
+        let none = (f64::INFINITY, f64::INFINITY);
+        let (takeovers, id, taken_at) = run(config.clone(), none);
         assert_eq!((takeovers, id), (1, 2));
         let t = taken_at.unwrap();
-        assert!(t >= config.handover_heard_s - 0.1 && t < 4.0, "handed over at {t} s");
-        let (takeovers, id, _) = run(TrackerConfig { handover_ratio: 0.0, ..config });
+        assert!(t >= config.handover_heard_s - 0.2 && t < 4.0, "handed over at {t} s");
+        // Array 2 unheard for 0.5 s from 1 s: heard all along only 2 s after it is back.
+        let (takeovers, id, taken_at) = run(config.clone(), (1.0, 1.5));
+        let t = taken_at.unwrap();
+        assert_eq!((takeovers, id), (1, 2));
+        assert!(t >= 1.5 + config.handover_heard_s - 0.2, "handed over at {t} s despite the gap");
+        // The distances' ratio is 4.1 / 17.4 = 0.24: a ratio of 0.2 never hands over.
+        let (takeovers, id, _) = run(TrackerConfig { handover_ratio: 0.2, ..config.clone() }, none);
+        assert_eq!((takeovers, id), (0, 1));
+        let (takeovers, id, _) = run(TrackerConfig { handover_ratio: 0.0, ..config }, none);
         assert_eq!((takeovers, id), (0, 1));
     }
 

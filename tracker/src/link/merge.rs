@@ -140,12 +140,15 @@ impl<R: Read> Merged<R> {
                         }
                         // A frame that describes no span of audio (Hello, Health, Beacon) is
                         // stamped at an instant behind the audio sent before it: it goes with
-                        // the recording's current key and says nothing of its continuity.
-                        let key = if crate::intake::frame_end(&f) == f.header.sample_index {
-                            input.key_s
-                        } else {
-                            input.key(end_s(&f, input.rate_hz))
-                        };
+                        // the recording's current key and says nothing of its continuity (two
+                        // in a row would otherwise read as a reboot).
+                        let key =
+                            if matches!(f.body, Body::Hello(_) | Body::Health(_) | Body::Beacon(_))
+                            {
+                                input.key_s
+                            } else {
+                                input.key(end_s(&f, input.rate_hz))
+                            };
                         input.head = Some((f, key));
                     }
                     Some(Err(e)) => {
@@ -254,6 +257,27 @@ mod tests {
             .map(|f| f.unwrap())
             .map(|f| (f.header.array_id, f.header.seq))
             .collect()
+    }
+
+    /// Two frames without a span in a row, stamped behind the audio already sent (a Health
+    /// at its interval's start after a Hello), are not a reboot: the recording keeps its
+    /// place in the merge instead of jumping 5 s behind the other one.
+    #[test]
+    fn frames_without_a_span_do_not_read_as_a_reboot() {
+        let health = |seq: u16, sample_index: u64| Frame {
+            header: Header { array_id: 1, seq, sample_index },
+            body: Body::Health(aim_wire::Health::default()),
+        };
+        let mut a: Vec<Frame> = (0..3).map(|k| doa(1, k, 8192 * u64::from(k))).collect();
+        a.push(health(3, 0));
+        a.push(health(4, 8192));
+        a.extend((5..8).map(|k| doa(1, k, 8192 * u64::from(k - 2))));
+        let b: Vec<Frame> = (0..6).map(|k| doa(2, k, 4096 + 8192 * u64::from(k))).collect();
+        let got = order(vec![("a", bytes(&a)), ("b", bytes(&b))]);
+        // Array 1's frame ending at 6·8192 goes before array 2's ending at 6·8192 + 4096.
+        let one = got.iter().position(|&f| f == (1, 7)).unwrap();
+        let two = got.iter().position(|&f| f == (2, 5)).unwrap();
+        assert!(one < two, "{got:?}");
     }
 
     /// Frames ending together go out by array id, whatever the order of the recordings.

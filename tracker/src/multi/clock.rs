@@ -269,7 +269,7 @@ impl ClockModel {
             ..config
         };
         let c = sync.speed_of_sound_mps.unwrap_or(crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS);
-        // A BEACON frame times the arrival at microphone 0 (aim-wire `Beacon`): where the site
+        // A BEACON frame times the arrival at microphone 0 (aim-dsp `beacon`): where the site
         // gives the microphones, that is where the array hears the beacon.
         let heard_at = |a: &crate::site::ArrayPose| match a.mic_positions_m.first() {
             Some(&[x, y]) => {
@@ -1048,7 +1048,7 @@ mod tests {
     #[test]
     fn a_site_with_a_beacon_makes_the_model() {
         use crate::site::{Site, SiteSync};
-        let text = "sample_rate_hz = 44100\nspeed_of_sound_mps = 340.0\n[[array]]\nid = 3\nposition = [0.0, 0.0, 0.0]\n[[array]]\nid = 4\nposition = [6.8, 0.0, 0.0]\n[[beacon]]\nid = 1\nposition = [3.4, 0.0, 0.0]\nperiod_s = 2.0\nsequence = \"aim-beacon-v1\"\n";
+        let text = "sample_rate_hz = 44100\nspeed_of_sound_mps = 340.0\n[[array]]\nid = 3\nposition = [0.0, 0.0, 0.0]\n[[array]]\nid = 4\nposition = [6.8, 0.0, 0.0]\nyaw_deg = 90.0\nroll_deg = 180.0\npositions = [[0.1, 0.0], [0.0, 0.1], [-0.1, 0.0], [0.0, -0.1]]\n[[beacon]]\nid = 1\nposition = [3.4, 0.0, 0.0]\nperiod_s = 2.0\nsequence = \"aim-beacon-v1\"\n";
         let path = std::path::Path::new("s.toml");
         let (site, sync) = (Site::parse(text, path).unwrap(), SiteSync::parse(text, path).unwrap());
         let m = ClockModel::from_site(&site, &sync, ClockConfig::default()).unwrap();
@@ -1056,7 +1056,10 @@ mod tests {
         let fast = ClockConfig { period_s: 0.4, ..ClockConfig::default() };
         assert_eq!(ClockModel::new(fast, [0.0; 3], 343.0, &[]).config().coarse_gate_s, 0.1);
         assert_eq!(m.arrays[&3].delay_s, 0.01);
-        assert_eq!(m.arrays[&4].delay_s, 0.01);
+        // Array 4 hears at its microphone 0: 0.1 m along its x, turned 90° (roll 180°
+        // leaves x): (6.8, 0.1, 0).
+        let mic0 = (3.4f64 * 3.4 + 0.1 * 0.1).sqrt() / 340.0;
+        assert!((m.arrays[&4].delay_s - mic0).abs() < 1e-12, "{}", m.arrays[&4].delay_s);
         assert!(
             ClockModel::from_site(&site, &SiteSync::default(), ClockConfig::default()).is_none()
         );
