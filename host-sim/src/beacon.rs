@@ -114,8 +114,8 @@ impl BeaconSpeaker {
             for k in first..=last as u64 {
                 let te = self.emission_s(k) + delay;
                 let j0 = ((te - 1.0 / fs - rx.t0_s) / rx.dt_s).floor().max(0.0) as usize;
-                let j1 = (((te + (len + 1.0) / fs - rx.t0_s) / rx.dt_s).ceil().max(0.0) as usize)
-                    .min(n);
+                let j1 =
+                    (((te + (len + 1.0) / fs - rx.t0_s) / rx.dt_s).ceil().max(0.0) as usize).min(n);
                 for (j, y) in out.iter_mut().enumerate().take(j1).skip(j0) {
                     let u = (rx.t0_s + j as f64 * rx.dt_s - te) * fs;
                     let w = aim_dsp::beacon::waveform_at;
@@ -190,7 +190,8 @@ mod tests {
             (lo..lo + aim_dsp::beacon::LEN as isize + 16)
                 .filter(|&j| j >= 0 && (j as usize) < out.len())
                 .map(|j| {
-                    f64::from(out[j as usize]) * aim_dsp::beacon::waveform_at((j as f64 - d) * ratio)
+                    f64::from(out[j as usize])
+                        * aim_dsp::beacon::waveform_at((j as f64 - d) * ratio)
                 })
                 .sum()
         };
@@ -226,7 +227,9 @@ mod tests {
         // rendered signal's arrival (fine correlation with the exact waveform) must match it to
         // 0.01 sample (0.2 µs) with and without air absorption (a zero-phase smoother).
         let s = speaker();
-        for (absorption, mic) in [(0.0, Vector3::new(9.3, 5.1, 0.05)), (1.3e-9, Vector3::new(13.0, -4.0, 0.1))] {
+        for (absorption, mic) in
+            [(0.0, Vector3::new(9.3, 5.1, 0.05)), (1.3e-9, Vector3::new(13.0, -4.0, 0.1))]
+        {
             let medium = free(absorption);
             let fs = 48_000.0;
             let (offset, drift) = (0.0213, -37.0);
@@ -243,7 +246,10 @@ mod tests {
                 let truth = (t - offset) * fs * (1.0 + drift * 1e-6);
                 let ratio = (1.0 + 40e-6) / (1.0 + drift * 1e-6);
                 let got = measured_arrival(&out, truth, ratio);
-                assert!((got - truth).abs() < 0.01, "absorption {absorption} k {k}: {got} vs {truth}");
+                assert!(
+                    (got - truth).abs() < 0.01,
+                    "absorption {absorption} k {k}: {got} vs {truth}"
+                );
             }
         }
     }

@@ -311,6 +311,22 @@ impl Printer {
                     )
                 }
             }
+            Output::Beacon(b) => {
+                let arrival = b.sample_index as f64 + f64::from(b.fraction);
+                let t = arrival / self.fs;
+                if self.jsonl {
+                    serde_json::json!({
+                        "kind": "beacon", "t": t, "arrival_samples": arrival,
+                        "quality": b.quality, "level_db": b.level_db,
+                    })
+                    .to_string()
+                } else {
+                    format!(
+                        "{t:9.6} s  beacon arrival {arrival:.4} samples  quality {:.3}  level {:.1} dBFS",
+                        b.quality, b.level_db
+                    )
+                }
+            }
             Output::Health(h) => {
                 self.counts[2] += 1;
                 let t = h.sample_index as f64 / self.fs;
