@@ -210,7 +210,7 @@ fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
 
 /// Functions that are a stage, or part of one, wherever they are inlined: the innermost of
 /// these in an inline chain decides.
-const STAGE_FUNCTIONS: [(&str, Probe); 14] = [
+const STAGE_FUNCTIONS: [(&str, Probe); 15] = [
     ("aim_wire::", Probe::Encode),
     ("aim_dsp::gcc_phat::phat_band", Probe::Phat),
     ("aim_dsp::gcc_phat::accumulate_cross", Probe::Phat),
@@ -220,6 +220,7 @@ const STAGE_FUNCTIONS: [(&str, Probe); 14] = [
     ("aim_dsp::doa::", Probe::Doa),
     ("aim_dsp::bpf::", Probe::Bpf),
     ("aim_dsp::idframe::", Probe::Features),
+    ("aim_dsp::beacon::", Probe::Beacon),
     // The pipeline's steps: what they do outside the functions above.
     ("aim_dsp::pipeline::Pipeline::spatial_block", Probe::Fft),
     ("aim_dsp::pipeline::Pipeline::estimate_direction", Probe::Doa),
@@ -307,8 +308,15 @@ impl Report {
     /// [`classify`] no longer recognises aim-dsp's function names, and that stage's
     /// instructions went to `other`.
     pub fn check_stages(&self) -> Result<()> {
-        const STAGES: [Probe; 6] =
-            [Probe::Fft, Probe::Phat, Probe::Inverse, Probe::Doa, Probe::Bpf, Probe::Features];
+        const STAGES: [Probe; 7] = [
+            Probe::Fft,
+            Probe::Phat,
+            Probe::Inverse,
+            Probe::Doa,
+            Probe::Bpf,
+            Probe::Features,
+            Probe::Beacon,
+        ];
         for section in &self.sections {
             if section.stage(Probe::PipelineOther.name()).unwrap_or(0) == 0 {
                 continue; // not a pipeline section

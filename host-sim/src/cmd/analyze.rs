@@ -314,15 +314,17 @@ impl Printer {
                 }
             }
             Output::Beacon(b) => {
-                let t = (b.sample_index as f64 + f64::from(b.fraction)) / self.fs;
+                let arrival = b.sample_index as f64 + f64::from(b.fraction);
+                let t = arrival / self.fs;
                 if self.jsonl {
                     serde_json::json!({
-                        "kind": "beacon", "t": t, "quality": b.quality, "level_db": b.level_db,
+                        "kind": "beacon", "t": t, "arrival_samples": arrival,
+                        "quality": b.quality, "level_db": b.level_db,
                     })
                     .to_string()
                 } else {
                     format!(
-                        "{t:12.6} s  beacon quality {:.2}  level {:.1} dBFS",
+                        "{t:9.6} s  beacon arrival {arrival:.4} samples  quality {:.3}  level {:.1} dBFS",
                         b.quality, b.level_db
                     )
                 }

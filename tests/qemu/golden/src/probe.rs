@@ -37,6 +37,9 @@ pub enum Probe {
     /// Drone-identification features of the BPF spectrum (`aim_dsp::idframe`): log-mel, MFCC,
     /// comb features.
     Features = 11,
+    /// The synchronisation beacon's detector on microphone 0 (`aim_dsp::beacon`): mixing
+    /// decimation filter, overlap-save correlation, peak refinement.
+    Beacon = 12,
     /// Writes the totals of the section that ends here.
     Dump = 15,
 }
@@ -46,7 +49,7 @@ pub const SLOTS: usize = 16;
 
 impl Probe {
     /// Every probe, in id order.
-    pub const ALL: [Probe; 13] = [
+    pub const ALL: [Probe; 14] = [
         Probe::Untracked,
         Probe::Input,
         Probe::PipelineOther,
@@ -59,6 +62,7 @@ impl Probe {
         Probe::Encode,
         Probe::Pdm,
         Probe::Features,
+        Probe::Beacon,
         Probe::Dump,
     ];
 
@@ -87,6 +91,7 @@ impl Probe {
             Probe::Encode => "encode",
             Probe::Pdm => "pdm",
             Probe::Features => "features",
+            Probe::Beacon => "beacon",
             Probe::Dump => "dump",
         }
     }
@@ -103,6 +108,7 @@ impl Probe {
                 | Probe::Bpf
                 | Probe::Pdm
                 | Probe::Features
+                | Probe::Beacon
         )
     }
 }
