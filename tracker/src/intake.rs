@@ -363,15 +363,6 @@ impl Intake {
             }
         }
         let newest = timeline.newest_s(pose, fs);
-        if std::env::var("AIM_DEBUG4").is_ok() && id == 1 {
-            eprintln!(
-                "intake 1 {:?} idx {} accepted {} newest {newest:.3} pending {}",
-                frame.body.kind(),
-                frame.header.sample_index,
-                accepted.len(),
-                state.pending.len()
-            );
-        }
         self.now = self.now.max(newest);
         let until = newest - c.reorder_s;
         self.stats.inputs += release(state, id, until, sink);
@@ -400,14 +391,6 @@ fn release(
     until: f64,
     sink: &mut impl FnMut(Released),
 ) -> u64 {
-    if std::env::var("AIM_DEBUG5").is_ok() && array_id == 1 {
-        eprintln!(
-            "release 1 until {until:.3} released_until {:.3} held {} min_t {:?}",
-            state.released_until,
-            state.held.len(),
-            state.held.iter().map(|i| i.t()).fold(f64::INFINITY, f64::min)
-        );
-    }
     if until <= state.released_until {
         return 0;
     }

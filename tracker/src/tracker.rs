@@ -10,7 +10,9 @@ use crate::doa::{DoaConfig, DoaState, DoaWindow};
 use crate::doppler::{DopplerFrame, FrameCentre, DEFAULT_SPEED_OF_SOUND_MPS};
 use crate::dynamics::{sum_bpf_squared, AcousticSpeed, HoverCalibration, SpeedIntegrator};
 use crate::filter::{new_filter, Filter, FilterKind, RangeDifference, Step};
-use crate::interarray::{DelayConfig, Prior, SnippetStore};
+use crate::interarray::{
+    joint_search, DelayConfig, PairCorrelation, SnippetStore, DELAYS_OVERSAMPLE, DELAYS_REFINE_S,
+};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
@@ -331,6 +333,10 @@ fn merge_span(spans: &mut VecDeque<(f64, f64)>, from: f64, to: f64) {
     }
 }
 
+/// Gap between two audio spans of another array that still counts as contiguous, s (a
+/// snippet ends where the next begins, up to rounding).
+const SPAN_JOIN_S: f64 = 1e-3;
+
 /// Most bearings of other arrays held for the filter (about 5 s of eight arrays): a stream
 /// of other arrays' frames while the tracked array is silent cannot grow memory.
 pub const OTHERS_KEPT: usize = 256;
@@ -460,10 +466,22 @@ impl Tracker {
         if array_id != self.array_id() {
             // Another array's, kept for a take-over ([`TrackerConfig::failover_s`]).
             if self.config.fuse_arrays && self.site.arrays.iter().any(|a| a.id == array_id) {
-                if self.other_audio.len() == OTHERS_KEPT {
-                    self.other_audio.pop_front();
+                // Contiguous spans of one array are kept as one (snippets come 31 a second
+                // per array: one entry each would push the older spans out of the bounded
+                // list, and a hand-over asks about the last `handover_heard_s`).
+                let last = self.other_audio.iter_mut().rev().find(|a| a.0 == array_id);
+                match last {
+                    Some(last) if from_s <= last.2 + SPAN_JOIN_S && to_s >= last.1 => {
+                        last.1 = last.1.min(from_s);
+                        last.2 = last.2.max(to_s);
+                    }
+                    _ => {
+                        if self.other_audio.len() == OTHERS_KEPT {
+                            self.other_audio.pop_front();
+                        }
+                        self.other_audio.push_back((array_id, from_s, to_s));
+                    }
                 }
-                self.other_audio.push_back((array_id, from_s, to_s));
                 // (kept `handover_heard_s` longer: a hand-over asks how long it was heard)
                 self.other_audio.retain(|a| a.2 >= keep_from - self.config.handover_heard_s);
             }
@@ -483,21 +501,11 @@ impl Tracker {
     pub fn push(&mut self, input: Input) -> Vec<Fix> {
         let t = input.t();
         let from = input.array_id();
-        if std::env::var("AIM_DEBUG7").is_ok() && from == 1 && !matches!(input, Input::Snippet(_)) {
-            eprintln!(
-                "top1 {:?} t {t:.3} tracked {}",
-                std::mem::discriminant(&input),
-                self.array_id()
-            );
-        }
         if let Input::Beacon(b) = &input {
             self.hear_beacon(b);
             return Vec::new();
         }
         if let Input::Snippet(x) = input {
-            if std::env::var("AIM_DEBUG2").is_ok() {
-                eprintln!("snip {} {} t {:.3}", x.array_id, x.sample_index, x.t);
-            }
             if let (true, Some(_), Ok(id)) =
                 (self.config.fuse_arrays, &self.clock, u8::try_from(x.array_id))
             {
@@ -521,13 +529,6 @@ impl Tracker {
                 }
                 return Vec::new();
             }
-        }
-        if std::env::var("AIM_DEBUG7").is_ok() && from == 1 {
-            eprintln!(
-                "push1 {:?} t {t:.3} latest {:.3}",
-                std::mem::discriminant(&input),
-                self.latest_input_t
-            );
         }
         if !t.is_finite() || t + 1e-9 < self.latest_input_t {
             return Vec::new();
@@ -602,9 +603,6 @@ impl Tracker {
     /// a pause, has not been heard all along and does not take the track back.
     fn may_take_over(&self, array_id: u16, t: f64) -> bool {
         let c = &self.config;
-        if std::env::var("AIM_DEBUG6").is_ok() && t - self.latest_input_t > 0.5 {
-            eprintln!("may_take_over {array_id} t {t:.3} latest {:.3}", self.latest_input_t);
-        }
         let since = if self.latest_input_t.is_finite() {
             let silence = t - self.latest_input_t;
             if silence <= c.failover_s || silence > c.max_gap_s {
@@ -731,9 +729,6 @@ impl Tracker {
             .iter()
             .filter_map(|a| {
                 let id = u8::try_from(a.id).ok()?;
-                if std::env::var("AIM_SKIP").ok().and_then(|v| v.parse::<u8>().ok()) == Some(id) {
-                    return None;
-                }
                 Some((id, a.position, synced(id)?))
             })
             .collect();
@@ -744,35 +739,41 @@ impl Tracker {
             return;
         };
         let config = DelayConfig { window_s: DELAYS_WINDOW_S, ..DelayConfig::default() };
-        for &(p, ap, map_p) in arrays.iter().filter(|a| a.0 != q) {
-            let prior =
-                Prior { centre_s: (distance(ap) - distance(aq)) / c, half_width_s: DELAYS_PRIOR_S };
-            let Some(d) = self.snippets.delay(
-                p,
-                q,
-                &|n: f64| map_p.time(n),
-                &|n: f64| map_q.time(n),
-                centre,
-                prior,
-                &config,
-            ) else {
-                if std::env::var("AIM_DEBUG").is_ok() {
-                    eprintln!("rd none t {t:.2} p {p} q {q} centre {centre:.3}");
-                }
-                continue;
-            };
+        // Each other array's correlation against q, its windows placed by the track.
+        let mut pairs: Vec<([f64; 3], PairCorrelation)> = arrays
+            .iter()
+            .filter(|a| a.0 != q)
+            .filter_map(|&(p, ap, map_p)| {
+                let predicted = (distance(ap) - distance(aq)) / c;
+                let mut corr = self.snippets.correlation(
+                    p,
+                    q,
+                    &|n: f64| map_p.time(n),
+                    &|n: f64| map_q.time(n),
+                    centre,
+                    predicted,
+                    &config,
+                )?;
+                corr.tabulate(DELAYS_OVERSAMPLE);
+                Some((ap, corr))
+            })
+            .collect();
+        if pairs.is_empty() {
+            return;
+        }
+        // The drone's comb repeats every 1/BPF (≈ 1 m of range difference), so one pair alone
+        // cannot tell its peak from the next; the point near the track that every pair's
+        // correlation supports at once can.
+        let at = if pairs.len() >= 2 { joint_search(then, &pairs, aq, c) } else { then };
+        let rd_at = |a: [f64; 3]| {
+            let d = |b: [f64; 3]| (0..3).map(|i| (at[i] - b[i]).powi(2)).sum::<f64>().sqrt();
+            (d(a) - d(aq)) / c
+        };
+        let half_width = if pairs.len() >= 2 { DELAYS_REFINE_S } else { DELAYS_PRIOR_S };
+        for (ap, corr) in pairs.drain(..) {
+            let Some(d) = corr.refine(rd_at(ap), half_width) else { continue };
             if d.quality < DELAYS_MIN_QUALITY {
                 continue;
-            }
-            if std::env::var("AIM_DEBUG").is_ok() {
-                eprintln!(
-                    "rd t {:.2} p {p} q {q} rd {:.3} pred {:.3} quality {:.2} margin {:.2}",
-                    t_then + (d.time_s - centre),
-                    c * d.delay_s,
-                    c * prior.centre_s,
-                    d.quality,
-                    d.margin
-                );
             }
             self.range_differences.push(RangeDifference {
                 t: t_then + (d.time_s - centre),
