@@ -1152,41 +1152,53 @@ mod tests {
     use crate::observation::{angles_of, Bearing, BpfPeak};
     use crate::site::ArrayPose;
 
+    /// Two arrays facing up on the x axis, at 0 and at `second_x` (m): ids 1 and 2.
+    fn two_arrays(second_x: f64) -> Site {
+        Site {
+            arrays: vec![
+                ArrayPose::new(1, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0),
+                ArrayPose::new(2, [second_x, 0.0, 0.0], 0.0, 0.0, 0.0),
+            ],
+            room: None,
+            sample_rate_hz: None,
+        }
+    }
+
+    /// The exact bearing of a drone at `drone` (world m) from array `id` of `site` at `t`.
+    fn exact_bearing(site: &Site, id: u16, drone: [f64; 3], t: f64) -> Input {
+        let a = site.array(id).expect("an array of the site");
+        let rel = [0, 1, 2].map(|i| drone[i] - a.position[i]);
+        let (az, zen) = angles_of(a.to_array(rel));
+        Input::Bearing(Bearing {
+            t,
+            array_id: id,
+            azimuth_rad: az,
+            zenith_rad: zen,
+            residual: 0.2,
+            quality: 3.0,
+        })
+    }
+
     /// The take-over (oracle: the rules of [`Tracker::may_take_over`]): array 1 tracks a
     /// still drone heard by both arrays, falls silent at 5 s; array 2, heard all along, takes
     /// over after `failover_s` and the fixes go on; array 1 back after a pause (a reboot's new
     /// epoch: not heard through it) does not take the track back.
     #[test]
     fn a_silent_array_is_taken_over_once_by_one_heard_all_along() {
-        let site = Site {
-            arrays: vec![
-                ArrayPose::new(1, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0),
-                ArrayPose::new(2, [8.0, 0.0, 0.0], 0.0, 0.0, 0.0),
-            ],
-            room: None,
-            sample_rate_hz: None,
-        };
+        let site = two_arrays(8.0);
         let drone = [4.0, 3.0, 2.0];
-        let mut tracker =
-            Tracker::new(site, Profile::dji_mini_2(), FilterKind::Aim, TrackerConfig::default())
-                .unwrap();
+        let mut tracker = Tracker::new(
+            site.clone(),
+            Profile::dji_mini_2(),
+            FilterKind::Aim,
+            TrackerConfig::default(),
+        )
+        .unwrap();
         tracker.gate_on_audio();
-        let bearing = |id: u16, t: f64| {
-            let origin = if id == 1 { 0.0 } else { 8.0 };
-            let (az, zen) = angles_of([drone[0] - origin, drone[1], drone[2]]);
-            Input::Bearing(Bearing {
-                t,
-                array_id: id,
-                azimuth_rad: az,
-                zenith_rad: zen,
-                residual: 0.2,
-                quality: 3.0,
-            })
-        };
         let mut fixes = Vec::new();
         let mut step = |tracker: &mut Tracker, id: u16, t: f64| {
             tracker.add_audio(id, t - 0.085, t + 0.085);
-            fixes.extend(tracker.push(bearing(id, t)));
+            fixes.extend(tracker.push(exact_bearing(&site, id, drone, t)));
         };
         for k in 0..60 {
             let t = f64::from(k) * 0.17;
@@ -1212,19 +1224,12 @@ mod tests {
     }
 
     /// The hand-over (oracle: the rules of [`Tracker::nearer`]): a still drone 4 m from array
-    /// 2 and 17 m from the tracked array 1, both heard all along. Array 2 takes the track once
-    /// it has been heard `handover_heard_s` and stays with it; with `handover_ratio` 0 array 1
-    /// keeps it.
+    /// 2 and 17 m from the tracked array 1. Array 2 takes the track once it has been heard all
+    /// along the last `handover_heard_s` (a gap in its audio restarts that) and stays with it;
+    /// with `handover_ratio` below the distances' ratio, or 0, array 1 keeps it.
     #[test]
     fn a_much_nearer_array_heard_long_enough_takes_the_track_once() {
-        let site = Site {
-            arrays: vec![
-                ArrayPose::new(1, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0),
-                ArrayPose::new(2, [20.0, 0.0, 0.0], 0.0, 0.0, 0.0),
-            ],
-            room: None,
-            sample_rate_hz: None,
-        };
+        let site = two_arrays(20.0);
         let drone = [17.0, 3.0, 2.0];
         // `gap`: array 2 unheard (no audio, no bearing) over these times, s.
         let run = |config: TrackerConfig, gap: (f64, f64)| {
@@ -1238,17 +1243,8 @@ mod tests {
                     if id == 2 && (gap.0..gap.1).contains(&t) {
                         continue;
                     }
-                    let origin = if id == 1 { 0.0 } else { 20.0 };
-                    let (az, zen) = angles_of([drone[0] - origin, drone[1], drone[2]]);
                     tracker.add_audio(id, t - 0.085, t + 0.085);
-                    tracker.push(Input::Bearing(Bearing {
-                        t,
-                        array_id: id,
-                        azimuth_rad: az,
-                        zenith_rad: zen,
-                        residual: 0.2,
-                        quality: 3.0,
-                    }));
+                    tracker.push(exact_bearing(&site, id, drone, t));
                 }
                 if taken_at.is_none() && tracker.array_id() == 2 {
                     taken_at = Some(t);
