@@ -779,7 +779,8 @@ mod tests {
     #[test]
     fn site_file_holds_nothing_from_the_truth() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
-        // Five arrays with their own clocks, and an airframe drawn from a wide population.
+        // Five arrays with their own clocks, a beacon, and an airframe drawn from a wide
+        // population.
         let mut overrides = toml::Table::new();
         let airframe: toml::Table = toml::from_str(
             "wake_spread = 0.3\ncg_offset_mm = 2.0\nthrust_spread = 0.03\nchipped_probability = 1.0",
@@ -807,6 +808,12 @@ mod tests {
             "obstacle.min",
             "obstacle.max",
             "obstacle.loss_db",
+            "beacon",
+            "beacon.id",
+            "beacon.position",
+            "beacon.period_s",
+            "beacon.sequence",
+            "beacon.level_db",
         ];
         for k in &keys {
             assert!(allowed.contains(&k.as_str()), "site.toml carries `{k}`");
@@ -816,6 +823,9 @@ mod tests {
         let mut secrets: Vec<f64> =
             s.arrays.iter().flat_map(|a| [a.clock.offset_s, a.clock.drift_ppm]).collect();
         secrets.extend([airframe.wake_gain, airframe.cg_offset_m[0], airframe.cg_offset_m[1]]);
+        // The beacon's own clock and start are the loudspeaker's, not the site's.
+        assert!(!s.beacons.is_empty());
+        secrets.extend(s.beacons.iter().flat_map(|b| [b.clock_drift_ppm, b.start_s]));
         secrets.extend(&airframe.thrust_factor);
         for x in secrets.iter().filter(|x| **x != 0.0 && **x != 1.0) {
             assert!(!numbers.contains(x), "site.toml holds the truth's value {x}");
