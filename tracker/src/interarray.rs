@@ -493,7 +493,7 @@ impl CrossSpectrum {
     /// The highest point of R inside `range` (samples, inclusive): a quarter-sample grid,
     /// then Newton steps; with the margin over the next local maximum.
     pub fn peak(&self, range: (f64, f64)) -> Option<LagEstimate> {
-        if !(range.0 <= range.1) {
+        if range.0.is_nan() || range.1.is_nan() || range.0 > range.1 {
             return None;
         }
         let steps = (((range.1 - range.0) * 4.0).ceil() as usize).max(1);
