@@ -216,7 +216,6 @@ impl Picker {
         Some(libm::sqrtf(mag / (template_energy * l.energy)))
     }
 
-    #[inline(never)]
     fn take(
         &mut self,
         lag: Lag,
@@ -417,6 +416,7 @@ impl Detector {
     /// Pushes input words (24-bit samples left-justified in i32, Q31), one every `stride` words
     /// from `words[0]`; `scratch` holds at least [`SCRATCH_LEN`] floats (its contents are
     /// overwritten); detections go to `out`.
+    #[inline(never)]
     pub fn push(
         &mut self,
         words: &[i32],
@@ -427,10 +427,18 @@ impl Detector {
         const Q31: f32 = 1.0 / 2_147_483_648.0;
         let stride = stride.max(1);
         let mut words = words;
+        // The taps on the stack: near the stack pointer, not at the pipeline's static address.
+        let taps = (self.taps_re, self.taps_im);
         while !words.is_empty() {
             let len = self.len;
             let take = (LIN_LEN - len).min(words.len().div_ceil(stride));
-            for (x, &w) in self.lin[len..len + take].iter_mut().zip(words.iter().step_by(stride)) {
+            let dst = &mut self.lin[len..len + take];
+            // Whole strides, then the first word of a trailing partial one.
+            let whole = take.min(words.len() / stride);
+            for (x, w) in dst.iter_mut().zip(words.chunks_exact(stride)) {
+                *x = w[0] as f32 * Q31;
+            }
+            if let (Some(x), Some(&w)) = (dst.get_mut(whole), words.get(whole * stride)) {
                 *x = w as f32 * Q31;
             }
             self.len = len + take;
@@ -438,7 +446,7 @@ impl Detector {
             // Baseband outputs whose newest input sample has arrived.
             while self.next_out < self.base.wrapping_add(self.len as u64) {
                 let newest = self.next_out.wrapping_sub(self.base) as usize;
-                let y = self.filter(newest);
+                let y = filter(&self.lin, newest, &taps);
                 self.buf[self.fill] = y;
                 self.fill += 1;
                 self.next_out += DECIMATION as u64;
@@ -453,57 +461,59 @@ impl Detector {
             }
         }
     }
+}
 
-    /// One baseband sample: `y = Σₖ g[k] · x[n − k]` with `x[n]` = `lin[newest]`, as pairs
-    /// `g[TAPS − k] = conj(g[k])` (k = 1..TAPS/2; g[0] = 0) and without the zero taps.
-    #[inline(always)]
-    fn filter(&self, newest: usize) -> Complex32 {
-        let Some(win) = self.lin.get(newest + 1 - TAPS..=newest) else { return ZERO };
-        let Ok(win) = <&[f32; TAPS]>::try_from(win) else { return ZERO };
-        let (wr, wi) = (&self.taps_re, &self.taps_im);
-        // x[n − k] = win[TAPS − 1 − k]; its partner x[n − TAPS + k] = win[k − 1].
-        let mut re = wr[TAPS / 2] * win[TAPS - 1 - TAPS / 2];
-        let mut im = 0.0f32;
-        macro_rules! pair {
-            (both $k:literal) => {{
-                let (a, b) = (win[TAPS - 1 - $k], win[$k - 1]);
-                re += wr[$k] * (a + b);
-                im += wi[$k] * (a - b);
-            }};
-            (re $k:literal) => {{
-                re += wr[$k] * (win[TAPS - 1 - $k] + win[$k - 1]);
-            }};
-            (im $k:literal) => {{
-                im += wi[$k] * (win[TAPS - 1 - $k] - win[$k - 1]);
-            }};
-        }
-        // cos(3πk/4) = 0 for k ≡ 2 (mod 4), sin(3πk/4) = 0 for k ≡ 0 (mod 4).
-        pair!(both 1);
-        pair!(im 2);
-        pair!(both 3);
-        pair!(re 4);
-        pair!(both 5);
-        pair!(im 6);
-        pair!(both 7);
-        pair!(re 8);
-        pair!(both 9);
-        pair!(im 10);
-        pair!(both 11);
-        pair!(re 12);
-        pair!(both 13);
-        pair!(im 14);
-        pair!(both 15);
-        pair!(re 16);
-        pair!(both 17);
-        pair!(im 18);
-        pair!(both 19);
-        pair!(re 20);
-        pair!(both 21);
-        pair!(im 22);
-        pair!(both 23);
-        Complex32::new(re, im)
+/// One baseband sample: `y = Σₖ g[k] · x[n − k]` with `x[n]` = `lin[newest]`, as pairs
+/// `g[TAPS − k] = conj(g[k])` (k = 1..TAPS/2; g[0] = 0) and without the zero taps.
+#[inline(always)]
+fn filter(lin: &[f32], newest: usize, taps: &([f32; HALF], [f32; HALF])) -> Complex32 {
+    let Some(win) = lin.get(newest + 1 - TAPS..=newest) else { return ZERO };
+    let Ok(win) = <&[f32; TAPS]>::try_from(win) else { return ZERO };
+    let (wr, wi) = (&taps.0, &taps.1);
+    // x[n − k] = win[TAPS − 1 − k]; its partner x[n − TAPS + k] = win[k − 1].
+    let mut re = wr[TAPS / 2] * win[TAPS - 1 - TAPS / 2];
+    let mut im = 0.0f32;
+    macro_rules! pair {
+        (both $k:literal) => {{
+            let (a, b) = (win[TAPS - 1 - $k], win[$k - 1]);
+            re += wr[$k] * (a + b);
+            im += wi[$k] * (a - b);
+        }};
+        (re $k:literal) => {{
+            re += wr[$k] * (win[TAPS - 1 - $k] + win[$k - 1]);
+        }};
+        (im $k:literal) => {{
+            im += wi[$k] * (win[TAPS - 1 - $k] - win[$k - 1]);
+        }};
     }
+    // cos(3πk/4) = 0 for k ≡ 2 (mod 4), sin(3πk/4) = 0 for k ≡ 0 (mod 4).
+    pair!(both 1);
+    pair!(im 2);
+    pair!(both 3);
+    pair!(re 4);
+    pair!(both 5);
+    pair!(im 6);
+    pair!(both 7);
+    pair!(re 8);
+    pair!(both 9);
+    pair!(im 10);
+    pair!(both 11);
+    pair!(re 12);
+    pair!(both 13);
+    pair!(im 14);
+    pair!(both 15);
+    pair!(re 16);
+    pair!(both 17);
+    pair!(im 18);
+    pair!(both 19);
+    pair!(re 20);
+    pair!(both 21);
+    pair!(im 22);
+    pair!(both 23);
+    Complex32::new(re, im)
+}
 
+impl Detector {
     /// One overlap-save transform over the full buffer; leaves its tail as the next buffer's
     /// head.
     #[inline(never)]

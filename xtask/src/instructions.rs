@@ -210,7 +210,7 @@ fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
 
 /// Functions that are a stage, or part of one, wherever they are inlined: the innermost of
 /// these in an inline chain decides.
-const STAGE_FUNCTIONS: [(&str, Probe); 15] = [
+const STAGE_FUNCTIONS: [(&str, Probe); 19] = [
     ("aim_wire::", Probe::Encode),
     ("aim_dsp::gcc_phat::phat_band", Probe::Phat),
     ("aim_dsp::gcc_phat::accumulate_cross", Probe::Phat),
@@ -220,7 +220,14 @@ const STAGE_FUNCTIONS: [(&str, Probe); 15] = [
     ("aim_dsp::doa::", Probe::Doa),
     ("aim_dsp::bpf::", Probe::Bpf),
     ("aim_dsp::idframe::", Probe::Features),
-    ("aim_dsp::beacon::", Probe::Beacon),
+    // The detector only: the waveform (`beacon::waveform_at`) is also the golden input's
+    // synthesis, which must not count as detection (it runs at configuration in the pipeline).
+    ("aim_dsp::beacon::Detector::", Probe::Beacon),
+    ("aim_dsp::beacon::Picker::", Probe::Beacon),
+    ("aim_dsp::beacon::Detector::", Probe::Beacon),
+    ("aim_dsp::beacon::refine", Probe::Beacon),
+    ("aim_dsp::snippet::", Probe::Snippet),
+    ("aim_dsp::pipeline::Pipeline::emit_snippets", Probe::Snippet),
     // The pipeline's steps: what they do outside the functions above.
     ("aim_dsp::pipeline::Pipeline::spatial_block", Probe::Fft),
     ("aim_dsp::pipeline::Pipeline::estimate_direction", Probe::Doa),
@@ -308,7 +315,7 @@ impl Report {
     /// [`classify`] no longer recognises aim-dsp's function names, and that stage's
     /// instructions went to `other`.
     pub fn check_stages(&self) -> Result<()> {
-        const STAGES: [Probe; 7] = [
+        const STAGES: [Probe; 8] = [
             Probe::Fft,
             Probe::Phat,
             Probe::Inverse,
@@ -316,6 +323,7 @@ impl Report {
             Probe::Bpf,
             Probe::Features,
             Probe::Beacon,
+            Probe::Snippet,
         ];
         for section in &self.sections {
             if section.stage(Probe::PipelineOther.name()).unwrap_or(0) == 0 {
