@@ -210,7 +210,7 @@ fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
 
 /// Functions that are a stage, or part of one, wherever they are inlined: the innermost of
 /// these in an inline chain decides.
-const STAGE_FUNCTIONS: [(&str, Probe); 18] = [
+const STAGE_FUNCTIONS: [(&str, Probe); 19] = [
     ("aim_wire::", Probe::Encode),
     ("aim_dsp::gcc_phat::phat_band", Probe::Phat),
     ("aim_dsp::gcc_phat::accumulate_cross", Probe::Phat),
