@@ -180,8 +180,11 @@ struct Picker {
     ring: [Lag; RING],
     newest: usize,
     lags_seen: u64,
-    /// The peak to report for the current emission (the first path), with its neighbours.
-    pending: Option<[Lag; 3]>,
+    /// Whether an emission is pending (no `Option`: the firmware's zeroed `Pipeline` static
+    /// holds only integers, floats, bools and arrays).
+    has_pending: bool,
+    /// The peak to report for the pending emission (the first path), with its neighbours.
+    pending: [Lag; 3],
     /// Quality of the reported peak.
     pending_q: f32,
     /// The strongest peak of the current emission: its lag and quality.
@@ -195,7 +198,8 @@ impl Picker {
             ring: [LAG0; RING],
             newest: 0,
             lags_seen: 0,
-            pending: None,
+            has_pending: false,
+            pending: [LAG0; 3],
             pending_q: 0.0,
             best_m: 0,
             best_q: 0.0,
@@ -227,13 +231,11 @@ impl Picker {
         self.newest = (self.newest + 1) % RING;
         self.ring[self.newest] = lag;
         self.lags_seen += 1;
-        if self.pending.is_some() && lag.m > self.best_m + GUARD {
-            if let Some(p) = &self.pending {
-                if let Some(d) = refine(p, template_energy, self.pending_q, ratio, gain) {
-                    out(d);
-                }
+        if self.has_pending && lag.m > self.best_m + GUARD {
+            if let Some(d) = refine(&self.pending, template_energy, self.pending_q, ratio, gain) {
+                out(d);
             }
-            self.pending = None;
+            self.has_pending = false;
         }
         if self.lags_seen < 3 {
             return;
@@ -243,7 +245,7 @@ impl Picker {
         if q < QUALITY_MIN {
             return;
         }
-        if self.pending.is_some() && (q <= self.best_q || b.m > self.best_m + GUARD) {
+        if self.has_pending && (q <= self.best_q || b.m > self.best_m + GUARD) {
             return;
         }
         // A new strongest peak: the earliest credible peak up to FIRST_PATH_WINDOW lags before
@@ -265,7 +267,8 @@ impl Picker {
                 }
             }
         }
-        self.pending = Some(first.0);
+        self.has_pending = true;
+        self.pending = first.0;
         self.pending_q = first.1;
     }
 }
