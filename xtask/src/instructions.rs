@@ -440,13 +440,18 @@ mod tests {
         let error = format!("{:#}", report.check_stages().unwrap_err());
         assert!(error.contains("8mic") && error.contains("phat"), "{error}");
         let all = "section 1\nprobe 2 1 1\nprobe 3 1 1\nprobe 4 1 1\nprobe 5 1 1\n\
-                   probe 6 1 1\nprobe 7 1 1\nprobe 11 1 1\nsection 2\nprobe 8 48230 1\n";
+                   probe 6 1 1\nprobe 7 1 1\nprobe 11 1 1\nprobe 12 1 1\nprobe 13 1 1\n\
+                   section 2\nprobe 8 48230 1\n";
         parse(GUEST, all).unwrap().check_stages().unwrap();
         // Without the features stage (the map lost `idframe::`): an error naming it.
         let no_features = all.replace("probe 11 1 1\n", "");
         let error =
             format!("{:#}", parse(GUEST, &no_features).unwrap().check_stages().unwrap_err());
         assert!(error.contains("features"), "{error}");
+        // Without the snippet stage (the map lost `snippet::`): an error naming it.
+        let no_snippet = all.replace("probe 13 1 1\n", "");
+        let error = format!("{:#}", parse(GUEST, &no_snippet).unwrap().check_stages().unwrap_err());
+        assert!(error.contains("snippet"), "{error}");
     }
 
     #[test]
@@ -507,6 +512,22 @@ mod tests {
         // Out-of-line shared code and the guest's own code: charged to the caller.
         assert_eq!(classify(&chain(&["microfft::impls::cfft::CFft::compute_butterflies"])), None);
         assert_eq!(classify(&chain(&["aim_golden::signal::Signal::fill"])), None);
+        // The beacon's waveform is the detector's only inside the detector: in the golden
+        // input's synthesis it stays with the caller (`input`).
+        let waveform = "aim_dsp::beacon::waveform_at";
+        assert_eq!(classify(&chain(&[waveform, "aim_golden::signal::Signal::new"])), None);
+        assert_eq!(
+            classify(&chain(&[waveform, "aim_dsp::beacon::Detector::configure"])),
+            Some(Probe::Beacon)
+        );
+        assert_eq!(
+            classify(&chain(&["aim_dsp::beacon::Picker::take", "aim_dsp::beacon::Detector::push"])),
+            Some(Probe::Beacon)
+        );
+        assert_eq!(
+            classify(&chain(&["aim_dsp::snippet::quantize", "aim_dsp::pipeline::Pipeline::push"])),
+            Some(Probe::Snippet)
+        );
         // The encode path, inlined into the sink inside `push` or out of line.
         let closure = "cost::measure::{closure#0}";
         assert_eq!(
