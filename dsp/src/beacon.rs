@@ -20,15 +20,25 @@
 //! half-band and without DC removal: the band-pass below has no response at DC).
 //! 1. **Mix, chip-matched filter and decimate by 12** in one complex FIR: `y[m] = Σₖ g[k] ·
 //!    x[12m − k]`, `g[k] = sin²(πk/48) · e^{j 3πk/4}` (the chip pulse on the 18 kHz carrier,
-//!    48 taps): complex baseband at 4 kHz, the 16–20 kHz band folded onto ±2 kHz.
+//!    48 taps): complex baseband at 4 kHz, the 16–20 kHz band folded onto ±2 kHz. The taps
+//!    come in conjugate pairs (`g[48 − k] = conj(g[k])`), a quarter of the real and of the
+//!    imaginary parts are zero: one output costs 23 sums or differences and 35
+//!    multiply-adds.
 //! 2. **Correlate** with the template `r` (the same FIR applied to the waveform, 260 samples)
 //!    by overlap-save: 512-point complex FFT of the newest 512 baseband samples, product with
 //!    the template's stored spectrum, inverse FFT; 253 new lags per transform (≈ 15.8 per
 //!    second).
 //! 3. **Pick** local maxima of `|c|` whose quality `q = |c| / √(Σ|r|² · Σ|y_window|²)` (the
-//!    normalised correlation, 0..1, Cauchy–Schwarz) is at least [`QUALITY_MIN`]; the best one
-//!    within [`GUARD`] baseband samples is the emission (one output per emission: echoes and
-//!    side lobes inside the guard are not reported).
+//!    normalised correlation, 0..1, Cauchy–Schwarz) is at least [`QUALITY_MIN`]; the strongest
+//!    one within [`GUARD`] baseband samples is the emission (one output per emission: echoes
+//!    and side lobes inside the guard are not reported). **First path:** a reflection can be
+//!    stronger than the direct sound (a ceiling or floor bounce with the direct path shadowed
+//!    or off the microphone's axis); the reported peak is the earliest local maximum within
+//!    [`FIRST_PATH_WINDOW`] lags (7.25 ms) before the strongest one whose |c| is at least
+//!    [`FIRST_PATH_FRACTION`] of the strongest's (above the m-sequence's side lobes) and whose
+//!    own `q` is at least [`FIRST_PATH_QUALITY_MIN`] (above noise), or the strongest itself.
+//!    `quality` and `level_db` are those of the reported peak. Two paths less than about one
+//!    chip (0.5 ms) apart are one peak, and their sum bends the envelope (step 4 (a)).
 //! 4. **Refine** to a fraction of an input sample. With the arrival at input sample n₀ the
 //!    correlation is `c[m] = ¼ (−1)^m e^{−j 3π n₀/4} E(12m − n₀) = ¼ e^{−j 3π δ/4} E(−δ)` with
 //!    `n₀ = 12m + δ` (as `e^{−j 9π m} = (−1)^m`), E the real envelope
@@ -47,7 +57,10 @@
 //! and the matched filter locks onto its centre: the report is then the arrival of the
 //! emission's centre less `LEN / 2` board samples (the first sample's arrival + ε · LEN / 2,
 //! 0.15 sample at 100 ppm). A clock model should therefore use `reported + LEN / 2` as the
-//! arrival of the emission's centre, which is exact for any drift. Memory: about 8.7 KiB (two 512-point complex buffers); the overlap
+//! arrival of the emission's centre, which is exact for any drift.
+//!
+//! Memory: about 10.5 KiB (two 512-point complex buffers, the converted input, the last 32
+//! lags for the first-path search); the overlap
 //! tail is parked in the caller's scratch during the transform.
 
 use microfft::Complex32;
