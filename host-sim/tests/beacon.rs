@@ -203,3 +203,19 @@ fn beacon_sweep() {
     }
     println!("no beacon: {false_alarms} detections in {minutes:.1} array-minutes");
 }
+
+/// zigzag10-los (a room: arrays on the floor, the speaker under the ceiling; seed 20): every
+/// array's arrivals against the straight path. Before the first-path search array 3 timed
+/// the ceiling reflection, 1.97 ms late.
+#[test]
+#[ignore = "measurement: BENCHMARKS.md, beacon first path (about a minute)"]
+fn zigzag10_first_path() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/zigzag10-los.toml");
+    let s = Scenario::load(&path).unwrap();
+    println!("array detected/expected unmatched mean_us sd_us max_abs_us");
+    for (a, (errors, unmatched, expected)) in s.arrays.iter().zip(run(&s)) {
+        let (mean, sd) = mean_sd(&errors);
+        let max = errors.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        println!("{} {}/{expected} {unmatched} {mean:.2} {sd:.2} {max:.2}", a.id, errors.len());
+    }
+}
