@@ -217,5 +217,6 @@ fn zigzag10_first_path() {
         let (mean, sd) = mean_sd(&errors);
         let max = errors.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         println!("{} {}/{expected} {unmatched} {mean:.2} {sd:.2} {max:.2}", a.id, errors.len());
+        println!("  {:?}", &errors[..errors.len().min(8)]);
     }
 }
