@@ -428,23 +428,33 @@ impl Pipeline {
         let nb = self.band_bins;
         let (fft_buf, units) = self.scratch.split_at_mut(MAX_BLOCK_LEN);
         let [mono, others @ ..] = &mut self.block;
+        // Out of line, on opaque slices: compiled inline (or with the slices' addresses known),
+        // the loops addressed the pipeline's fields from its static address and rebuilt the
+        // addresses every sample (QEMU cost, fft stage).
+        #[inline(never)]
+        fn first(fft_buf: &mut [f32], mono: &mut [i32], window: &[f32], shift: u32) {
+            let (fft_buf, mono, window) = core::hint::black_box((fft_buf, mono, window));
+            for ((x, s), &w) in fft_buf.iter_mut().zip(mono).zip(window) {
+                let q = frontend::to_q15(*s, shift);
+                *x = f32::from(q) * w;
+                *s = i32::from(q);
+            }
+        }
+        #[inline(never)]
+        fn other(fft_buf: &mut [f32], ch: &[i32], mono: &mut [i32], window: &[f32], shift: u32) {
+            let (fft_buf, ch, mono, window) = core::hint::black_box((fft_buf, ch, mono, window));
+            for (((x, &s), m), &w) in fft_buf.iter_mut().zip(ch).zip(mono).zip(window) {
+                let q = frontend::to_q15(s, shift);
+                *x = f32::from(q) * w;
+                *m += i32::from(q);
+            }
+        }
         for mic in 0..self.mics {
             let window = &self.window[..n];
             if mic == 0 {
-                for ((x, s), &w) in fft_buf[..n].iter_mut().zip(&mut mono[..n]).zip(window) {
-                    let q = frontend::to_q15(*s, shift);
-                    *x = f32::from(q) * w;
-                    *s = i32::from(q);
-                }
+                first(&mut fft_buf[..n], &mut mono[..n], window, shift);
             } else {
-                let ch = &others[mic - 1][..n];
-                for (((x, &s), m), &w) in
-                    fft_buf[..n].iter_mut().zip(ch).zip(&mut mono[..n]).zip(window)
-                {
-                    let q = frontend::to_q15(s, shift);
-                    *x = f32::from(q) * w;
-                    *m += i32::from(q);
-                }
+                other(&mut fft_buf[..n], &others[mic - 1][..n], &mut mono[..n], window, shift);
             }
             let unit = &mut units[mic * 2 * MAX_BAND_BINS..][..2 * nb];
             if n == 1024 {

@@ -40,6 +40,9 @@ pub enum Probe {
     /// The synchronisation beacon's detector on microphone 0 (`aim_dsp::beacon`): mixing
     /// decimation filter, overlap-save correlation, peak refinement.
     Beacon = 12,
+    /// The audio snippets for inter-array delays (`aim_dsp::snippet`, the pipeline's
+    /// `emit_snippets`): reading the BPF path's ring, block-floating quantisation.
+    Snippet = 13,
     /// Writes the totals of the section that ends here.
     Dump = 15,
 }
@@ -49,7 +52,7 @@ pub const SLOTS: usize = 16;
 
 impl Probe {
     /// Every probe, in id order.
-    pub const ALL: [Probe; 14] = [
+    pub const ALL: [Probe; 15] = [
         Probe::Untracked,
         Probe::Input,
         Probe::PipelineOther,
@@ -63,6 +66,7 @@ impl Probe {
         Probe::Pdm,
         Probe::Features,
         Probe::Beacon,
+        Probe::Snippet,
         Probe::Dump,
     ];
 
@@ -92,6 +96,7 @@ impl Probe {
             Probe::Pdm => "pdm",
             Probe::Features => "features",
             Probe::Beacon => "beacon",
+            Probe::Snippet => "snippet",
             Probe::Dump => "dump",
         }
     }
@@ -109,6 +114,7 @@ impl Probe {
                 | Probe::Pdm
                 | Probe::Features
                 | Probe::Beacon
+                | Probe::Snippet
         )
     }
 }
