@@ -301,6 +301,8 @@ pub struct Tracker {
     other_audio: VecDeque<(u16, f64, f64)>,
     /// Position of the last fix, ENU m.
     last_position: Option<[f64; 3]>,
+    /// Instant of the last fix, s (−∞ before the first).
+    last_fix_t: f64,
     /// Input time of the last take-over, s.
     last_takeover_t: f64,
     /// The arrays' clocks from the site's beacon ([`Tracker::with_sync`]), if it has one.
@@ -428,6 +430,7 @@ impl Tracker {
             takeovers: 0,
             other_audio: VecDeque::new(),
             last_position: None,
+            last_fix_t: f64::NEG_INFINITY,
             last_takeover_t: f64::NEG_INFINITY,
             clock: None,
             clock_template: None,
@@ -721,7 +724,9 @@ impl Tracker {
         let c = DEFAULT_SPEED_OF_SOUND_MPS;
         let t_then = t - DELAYS_LOOKBACK_S;
         let centre = tracked_map.time(t_then * fs);
-        let lag = self.last_output.map_or(0.0, |last| last - t_then);
+        // Back from the last fix's instant (not the instant being output: `last_output` is
+        // already this one's).
+        let lag = if self.last_fix_t.is_finite() { self.last_fix_t - t_then } else { 0.0 };
         let then: [f64; 3] = std::array::from_fn(|i| x[i] - self.last_velocity[i] * lag);
         let arrays: Vec<(u8, [f64; 3], ClockMap)> = self
             .site
@@ -1125,6 +1130,7 @@ impl Tracker {
         };
         let est = self.filter.step(&step)?;
         self.last_position = Some(est.position);
+        self.last_fix_t = t;
         self.last_velocity = est.velocity;
         let pc = &est.position_covariance;
         Some(Fix {

@@ -68,7 +68,7 @@ pub struct AimConfig {
     /// The same while inter-array range differences come in (within the last
     /// [`RANGED_FOR_S`]): they observe the motion themselves, and a class wrongly read as
     /// hover must not hold the track back against them (tuned on the distributed tuning seeds:
-    /// zigzag20 0.43 → 0.29 m; BENCHMARKS.md), m/s.
+    /// zigzag20 0.43 → 0.25 m with the span fix; BENCHMARKS.md), m/s.
     pub pseudo_sigma_ranged: f64,
     /// Vertical-velocity noise of the hold-altitude pseudo-measurement outside vertical
     /// motion, m/s (a multirotor's altitude controller holds height to a few cm/s).
