@@ -30,7 +30,8 @@ use host_sim::scenario::Scenario;
 pub struct Args {
     /// Scenario file (TOML), e.g. `host-sim/scenarios/square10-los.toml`.
     scenario: PathBuf,
-    /// Filter: `aim`, `paper`, or `both` (one simulation, two tracks).
+    /// Filter: `aim`, `paper`, `triangulate` (several arrays: DoA rays intersected), or `both`
+    /// (`paper` and `aim`: one simulation, two tracks).
     #[arg(long, default_value = "aim")]
     filter: String,
     /// Output directory (default: `fly-<scenario name>`).
@@ -325,6 +326,7 @@ pub(crate) fn filter_name(kind: FilterKind) -> &'static str {
     match kind {
         FilterKind::Paper => "paper",
         FilterKind::Aim => "aim",
+        FilterKind::Triangulate => "triangulate",
     }
 }
 

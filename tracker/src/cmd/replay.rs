@@ -47,7 +47,9 @@ pub struct TrackOptions {
     /// there takes its bundled profile.
     #[arg(long, value_name = "DIR")]
     pub id_profiles: Option<PathBuf>,
-    /// Filter: `aim` (position–velocity EKF mixture) or `paper` (the paper's baseline).
+    /// Filter: `aim` (position–velocity EKF mixture), `paper` (the paper's baseline) or
+    /// `triangulate` (several arrays: their DoA rays intersected, the paper's distributed
+    /// baseline).
     #[arg(long, default_value = "aim")]
     pub filter: FilterKind,
     /// Array to track with (default: the site's first).

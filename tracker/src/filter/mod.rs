@@ -8,6 +8,7 @@
 pub mod aim;
 pub mod ekf;
 pub mod paper;
+pub mod triangulation;
 
 use crate::doa::DoaState;
 use crate::dynamics::AcousticSpeed;
@@ -21,6 +22,9 @@ pub enum FilterKind {
     Paper,
     /// Position–velocity EKF mixture with bearing, speed and motion-class updates.
     Aim,
+    /// The DoA rays of every array intersected at each step (several arrays; the paper's
+    /// distributed baseline).
+    Triangulate,
 }
 
 impl std::str::FromStr for FilterKind {
@@ -29,7 +33,10 @@ impl std::str::FromStr for FilterKind {
         match s {
             "paper" => Ok(FilterKind::Paper),
             "aim" => Ok(FilterKind::Aim),
-            other => Err(format!("unknown filter `{other}` (expected `paper` or `aim`)")),
+            "triangulate" => Ok(FilterKind::Triangulate),
+            other => {
+                Err(format!("unknown filter `{other}` (expected `paper`, `aim` or `triangulate`)"))
+            }
         }
     }
 }
@@ -96,6 +103,7 @@ pub fn new_filter(kind: FilterKind) -> Box<dyn Filter + Send> {
     match kind {
         FilterKind::Paper => Box::new(paper::PaperFilter::default()),
         FilterKind::Aim => Box::new(aim::AimFilter::default()),
+        FilterKind::Triangulate => Box::new(triangulation::TriangulationFilter::default()),
     }
 }
 
