@@ -22,8 +22,8 @@ pub const MIN_ANGLE_RAD: f64 = 5.0 * std::f64::consts::PI / 180.0;
 pub struct TriangulationFilter {
     /// Latest bearing per array id as (its time, s; its ray).
     latest: BTreeMap<u16, (f64, Ray)>,
-    /// The last estimate.
-    last: Option<Estimate>,
+    /// The last estimate and the time of its point, s.
+    last: Option<(f64, Estimate)>,
 }
 
 impl Filter for TriangulationFilter {
@@ -38,16 +38,20 @@ impl Filter for TriangulationFilter {
         }
         self.latest.retain(|_, v| step.t - v.0 <= STALE_S);
         let rays: Vec<Ray> = self.latest.values().map(|(_, ray)| *ray).collect();
-        let Ok(point) = triangulate(&rays, MIN_ANGLE_RAD) else { return self.last.clone() };
+        let Ok(point) = triangulate(&rays, MIN_ANGLE_RAD) else {
+            // Held where it was, not moving.
+            return self.last.as_ref().map(|(_, e)| Estimate { velocity: [0.0; 3], ..e.clone() });
+        };
         let mut position = point.position;
         if let Some(room) = step.room {
             for (i, p) in position.iter_mut().enumerate() {
                 *p = p.clamp(room.min[i], room.max[i]);
             }
         }
+        // Over the time since the last point (longer than a step after held steps).
         let velocity = match &self.last {
-            Some(last) if step.dt > 0.0 => {
-                std::array::from_fn(|i| (position[i] - last.position[i]) / step.dt)
+            Some((t, last)) if step.t > *t => {
+                std::array::from_fn(|i| (position[i] - last.position[i]) / (step.t - t))
             }
             _ => [0.0; 3],
         };
@@ -55,7 +59,7 @@ impl Filter for TriangulationFilter {
         let var = point.rms_distance_m.max(0.1).powi(2);
         let estimate =
             Estimate { position, velocity, position_covariance: Matrix3::identity() * var };
-        self.last = Some(estimate.clone());
+        self.last = Some((step.t, estimate.clone()));
         Some(estimate)
     }
 }
@@ -132,6 +136,10 @@ mod tests {
         // Two seconds later only the tracked array is heard: the others have gone stale, one
         // ray gives no point, and the last one is held.
         let e = step_at(3.0, [9.0, 4.0, 2.0], false).expect("held");
-        assert_eq!(e.position, last);
+        assert_eq!((e.position, e.velocity), (last, [0.0; 3]));
+        // Heard again: the velocity spans the time since the last point (2.2 s), not one step.
+        let e = step_at(3.1, [9.0, 4.0, 2.0], true).expect("three rays");
+        let expected = (9.0 - last[0]) / 2.2;
+        assert!((e.velocity[0] - expected).abs() < 1e-6, "{:?} against {expected}", e.velocity);
     }
 }
