@@ -988,16 +988,7 @@ mod tests {
     /// The exact bearing of a drone at `drone` (world m) from array `id` of `site` at `t`.
     fn exact_bearing(site: &Site, id: u16, drone: [f64; 3], t: f64) -> Input {
         let a = site.array(id).expect("an array of the site");
-        let rel = [0, 1, 2].map(|i| drone[i] - a.position[i]);
-        let (az, zen) = angles_of(a.to_array(rel));
-        Input::Bearing(Bearing {
-            t,
-            array_id: id,
-            azimuth_rad: az,
-            zenith_rad: zen,
-            residual: 0.2,
-            quality: 3.0,
-        })
+        Input::Bearing(crate::testutil::exact_bearing(a, drone, t))
     }
 
     /// The take-over (oracle: the rules of [`Tracker::may_take_over`]): array 1 tracks a

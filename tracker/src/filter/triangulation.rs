@@ -69,15 +69,9 @@ mod tests {
     use super::*;
     use crate::dynamics::AcousticSpeed;
     use crate::motion::MotionClass;
-    use crate::observation::{angles_of, Bearing};
+    use crate::observation::Bearing;
     use crate::site::ArrayPose;
-
-    /// The bearing `array` hears from `point` (exact), stamped `t`.
-    fn bearing(array: &ArrayPose, point: [f64; 3], t: f64) -> Bearing {
-        let rel = std::array::from_fn(|i| point[i] - array.position[i]);
-        let (azimuth_rad, zenith_rad) = angles_of(array.to_array(rel));
-        Bearing { t, array_id: array.id, azimuth_rad, zenith_rad, residual: 0.0, quality: 1.0 }
-    }
+    use crate::testutil::exact_bearing;
 
     #[test]
     fn exact_bearings_meet_at_the_drone_and_a_lone_one_holds_the_last_point() {
@@ -100,10 +94,10 @@ mod tests {
         let mut rng = crate::testutil::Rng::new(3);
         let mut step_at = |t: f64, drone: [f64; 3], with_others: bool| {
             let mut doa = crate::testutil::doa(t, drone, &mut rng);
-            let exact = bearing(&tracked, drone, t);
+            let exact = exact_bearing(&tracked, drone, t);
             (doa.azimuth_rad, doa.zenith_rad) = (exact.azimuth_rad, exact.zenith_rad);
             let others: Vec<(&ArrayPose, Bearing)> = if with_others {
-                others.iter().map(|a| (a, bearing(a, drone, t))).collect()
+                others.iter().map(|a| (a, exact_bearing(a, drone, t))).collect()
             } else {
                 Vec::new()
             };
