@@ -49,3 +49,22 @@ pub fn doa(t: f64, pos: [f64; 3], rng: &mut Rng) -> crate::doa::DoaState {
         moving: false,
     }
 }
+
+/// The exact DoA frame `array` hears from a drone at `drone` (world m) at `t` (s): its true
+/// angles, fit residual 0.2, quality 3.0.
+pub fn exact_bearing(
+    array: &crate::site::ArrayPose,
+    drone: [f64; 3],
+    t: f64,
+) -> crate::observation::Bearing {
+    let rel = [0, 1, 2].map(|i| drone[i] - array.position[i]);
+    let (azimuth_rad, zenith_rad) = crate::observation::angles_of(array.to_array(rel));
+    crate::observation::Bearing {
+        t,
+        array_id: array.id,
+        azimuth_rad,
+        zenith_rad,
+        residual: 0.2,
+        quality: 3.0,
+    }
+}

@@ -379,6 +379,17 @@ pub enum TrackerError {
     /// Output period not positive.
     #[error("output period must be positive (got {0} s)")]
     BadPeriod(f64),
+    /// The triangulation baseline needs several arrays' bearings.
+    #[error(
+        "the `triangulate` filter needs several arrays fused (the site has {arrays}, fusion {})",
+        if *fused { "on" } else { "off (--no-fuse)" }
+    )]
+    TriangulateNeedsArrays {
+        /// Arrays in the site.
+        arrays: usize,
+        /// Whether other arrays' bearings reach the filter.
+        fused: bool,
+    },
 }
 
 impl Tracker {
@@ -391,6 +402,12 @@ impl Tracker {
     ) -> Result<Self, TrackerError> {
         if config.output_period_s.is_nan() || config.output_period_s <= 0.0 {
             return Err(TrackerError::BadPeriod(config.output_period_s));
+        }
+        if kind == FilterKind::Triangulate && (site.arrays.len() < 2 || !config.fuse_arrays) {
+            return Err(TrackerError::TriangulateNeedsArrays {
+                arrays: site.arrays.len(),
+                fused: config.fuse_arrays,
+            });
         }
         let array_index = match config.array_id {
             Some(id) => {
@@ -1170,19 +1187,29 @@ mod tests {
         }
     }
 
+    #[test]
+    fn triangulation_is_refused_without_several_arrays_fused() {
+        let new = |site: Site, fuse_arrays: bool| {
+            let config = TrackerConfig { fuse_arrays, ..TrackerConfig::default() };
+            Tracker::new(site, Profile::dji_mini_2(), FilterKind::Triangulate, config)
+        };
+        let mut one = two_arrays(5.0);
+        one.arrays.truncate(1);
+        assert!(matches!(
+            new(one, true),
+            Err(TrackerError::TriangulateNeedsArrays { arrays: 1, fused: true })
+        ));
+        assert!(matches!(
+            new(two_arrays(5.0), false),
+            Err(TrackerError::TriangulateNeedsArrays { arrays: 2, fused: false })
+        ));
+        assert!(new(two_arrays(5.0), true).is_ok());
+    }
+
     /// The exact bearing of a drone at `drone` (world m) from array `id` of `site` at `t`.
     fn exact_bearing(site: &Site, id: u16, drone: [f64; 3], t: f64) -> Input {
         let a = site.array(id).expect("an array of the site");
-        let rel = [0, 1, 2].map(|i| drone[i] - a.position[i]);
-        let (az, zen) = angles_of(a.to_array(rel));
-        Input::Bearing(Bearing {
-            t,
-            array_id: id,
-            azimuth_rad: az,
-            zenith_rad: zen,
-            residual: 0.2,
-            quality: 3.0,
-        })
+        Input::Bearing(crate::testutil::exact_bearing(a, drone, t))
     }
 
     /// The take-over (oracle: the rules of [`Tracker::may_take_over`]): array 1 tracks a

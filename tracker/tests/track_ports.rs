@@ -47,7 +47,12 @@ fn aim_track_reads_two_boards_at_once() {
         stdout.read_to_string(&mut s).unwrap();
         s
     });
+    // Each pair of frames when its audio has been sampled, as two boards send them: written
+    // all at once, one port's reader could deliver its whole stream before the other's, and
+    // the other array would read as fallen silent (a take-over mid-test).
+    let start = std::time::Instant::now();
     for (a, b) in one.iter().zip(&two) {
+        common::wait_until_sent(a, start);
         m1.write_all(&common::bytes(std::slice::from_ref(a))).unwrap();
         m2.write_all(&common::bytes(std::slice::from_ref(b))).unwrap();
     }

@@ -72,15 +72,7 @@ fn aim_track_on_a_pty_at_link_pace_equals_aim_replay() {
     // Each frame when the audio it describes has been sampled, as the board sends it.
     let start = Instant::now();
     for f in &frames {
-        let end = match &f.body {
-            aim_wire::Body::Doa(d) => f.header.sample_index + u64::from(d.span_samples),
-            aim_wire::Body::Peaks(p) => f.header.sample_index + u64::from(p.span_samples),
-            _ => f.header.sample_index,
-        };
-        let due = Duration::from_secs_f64(end as f64 / FS as f64);
-        if let Some(wait) = due.checked_sub(start.elapsed()) {
-            std::thread::sleep(wait);
-        }
+        common::wait_until_sent(f, start);
         master.write_all(&common::bytes(std::slice::from_ref(f))).unwrap();
     }
     // Every live fix is out: all bytes were read. Then the board goes away.

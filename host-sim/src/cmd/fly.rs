@@ -1,5 +1,5 @@
-//! `host-sim fly SCENARIO.toml [--filter paper|aim|both] [--out DIR]`: simulate, run every
-//! array's recording (block by block as it is rendered, never held whole; memory refused up
+//! `host-sim fly SCENARIO.toml [--filter paper|aim|triangulate|both] [--out DIR]`: simulate,
+//! run every array's recording (block by block as it is rendered, never held whole; memory refused up
 //! front past `--max-memory-mb` as `host-sim simulate` does) through the on-chip pipeline and the wire format into the bytes a board
 //! would send, then track from those bytes exactly as `aim replay DIR/frames-<id>.aimraw --site
 //! DIR/site.toml` does (the same [`aim_tracker::session::Session`], the frames in link order,

@@ -1,6 +1,6 @@
 //! The DoA-ray triangulation baseline of the paper's distributed evaluation (§VII-D, Fig. 23):
 //! at each step, the point closest to the rays along every array's latest bearing
-//! ([`crate::multi::triangulate`]). No dynamics, no range differences: what several arrays give
+//! ([`crate::multi::triangulate`]). No dynamics: what several arrays give
 //! by geometry alone, to set beside the `aim` filter on the same frames.
 
 use std::collections::BTreeMap;
@@ -22,8 +22,8 @@ pub const MIN_ANGLE_RAD: f64 = 5.0 * std::f64::consts::PI / 180.0;
 pub struct TriangulationFilter {
     /// Latest bearing per array id as (its time, s; its ray).
     latest: BTreeMap<u16, (f64, Ray)>,
-    /// The last estimate.
-    last: Option<Estimate>,
+    /// The last estimate and the time of its point, s.
+    last: Option<(f64, Estimate)>,
 }
 
 impl Filter for TriangulationFilter {
@@ -38,16 +38,20 @@ impl Filter for TriangulationFilter {
         }
         self.latest.retain(|_, v| step.t - v.0 <= STALE_S);
         let rays: Vec<Ray> = self.latest.values().map(|(_, ray)| *ray).collect();
-        let Ok(point) = triangulate(&rays, MIN_ANGLE_RAD) else { return self.last.clone() };
+        let Ok(point) = triangulate(&rays, MIN_ANGLE_RAD) else {
+            // Held where it was, not moving.
+            return self.last.as_ref().map(|(_, e)| Estimate { velocity: [0.0; 3], ..e.clone() });
+        };
         let mut position = point.position;
         if let Some(room) = step.room {
             for (i, p) in position.iter_mut().enumerate() {
                 *p = p.clamp(room.min[i], room.max[i]);
             }
         }
+        // Over the time since the last point (longer than a step after held steps).
         let velocity = match &self.last {
-            Some(last) if step.dt > 0.0 => {
-                std::array::from_fn(|i| (position[i] - last.position[i]) / step.dt)
+            Some((t, last)) if step.t > *t => {
+                std::array::from_fn(|i| (position[i] - last.position[i]) / (step.t - t))
             }
             _ => [0.0; 3],
         };
@@ -55,7 +59,7 @@ impl Filter for TriangulationFilter {
         let var = point.rms_distance_m.max(0.1).powi(2);
         let estimate =
             Estimate { position, velocity, position_covariance: Matrix3::identity() * var };
-        self.last = Some(estimate.clone());
+        self.last = Some((step.t, estimate.clone()));
         Some(estimate)
     }
 }
@@ -65,15 +69,9 @@ mod tests {
     use super::*;
     use crate::dynamics::AcousticSpeed;
     use crate::motion::MotionClass;
-    use crate::observation::{angles_of, Bearing};
+    use crate::observation::Bearing;
     use crate::site::ArrayPose;
-
-    /// The bearing `array` hears from `point` (exact), stamped `t`.
-    fn bearing(array: &ArrayPose, point: [f64; 3], t: f64) -> Bearing {
-        let rel = std::array::from_fn(|i| point[i] - array.position[i]);
-        let (azimuth_rad, zenith_rad) = angles_of(array.to_array(rel));
-        Bearing { t, array_id: array.id, azimuth_rad, zenith_rad, residual: 0.0, quality: 1.0 }
-    }
+    use crate::testutil::exact_bearing;
 
     #[test]
     fn exact_bearings_meet_at_the_drone_and_a_lone_one_holds_the_last_point() {
@@ -96,10 +94,10 @@ mod tests {
         let mut rng = crate::testutil::Rng::new(3);
         let mut step_at = |t: f64, drone: [f64; 3], with_others: bool| {
             let mut doa = crate::testutil::doa(t, drone, &mut rng);
-            let exact = bearing(&tracked, drone, t);
+            let exact = exact_bearing(&tracked, drone, t);
             (doa.azimuth_rad, doa.zenith_rad) = (exact.azimuth_rad, exact.zenith_rad);
             let others: Vec<(&ArrayPose, Bearing)> = if with_others {
-                others.iter().map(|a| (a, bearing(a, drone, t))).collect()
+                others.iter().map(|a| (a, exact_bearing(a, drone, t))).collect()
             } else {
                 Vec::new()
             };
@@ -108,7 +106,6 @@ mod tests {
                 dt: 0.1,
                 array: &tracked,
                 others,
-                range_differences: Vec::new(),
                 doa: Some(doa),
                 los: true,
                 motion: MotionClass::Horizontal,
@@ -133,6 +130,10 @@ mod tests {
         // Two seconds later only the tracked array is heard: the others have gone stale, one
         // ray gives no point, and the last one is held.
         let e = step_at(3.0, [9.0, 4.0, 2.0], false).expect("held");
-        assert_eq!(e.position, last);
+        assert_eq!((e.position, e.velocity), (last, [0.0; 3]));
+        // Heard again: the velocity spans the time since the last point (2.2 s), not one step.
+        let e = step_at(3.1, [9.0, 4.0, 2.0], true).expect("three rays");
+        let expected = (9.0 - last[0]) / 2.2;
+        assert!((e.velocity[0] - expected).abs() < 1e-6, "{:?} against {expected}", e.velocity);
     }
 }

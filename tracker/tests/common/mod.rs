@@ -118,6 +118,20 @@ pub fn link(from: u64, to: u64, seq: &mut u16, seed: u64) -> Vec<Frame> {
         .collect()
 }
 
+/// Waits, from `start`, until the audio `frame` describes has been sampled: when a board
+/// sends it (the link's real pace).
+pub fn wait_until_sent(frame: &Frame, start: std::time::Instant) {
+    let end = match &frame.body {
+        Body::Doa(d) => frame.header.sample_index + u64::from(d.span_samples),
+        Body::Peaks(p) => frame.header.sample_index + u64::from(p.span_samples),
+        _ => frame.header.sample_index,
+    };
+    let due = std::time::Duration::from_secs_f64(end as f64 / FS as f64);
+    if let Some(wait) = due.checked_sub(start.elapsed()) {
+        std::thread::sleep(wait);
+    }
+}
+
 /// The frames on the wire.
 pub fn bytes(frames: &[Frame]) -> Vec<u8> {
     let mut out = Vec::new();
