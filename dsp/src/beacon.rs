@@ -27,7 +27,8 @@
 //! 2. **Correlate** with the template `r` (the same FIR applied to the waveform, 260 samples)
 //!    by overlap-save: 512-point complex FFT of the newest 512 baseband samples, product with
 //!    the template's stored spectrum, inverse FFT; 253 new lags per transform (≈ 15.8 per
-//!    second).
+//!    second). The radix-4 pair [`crate::fft::dif_512`] / [`crate::fft::dit_512`]: the
+//!    product is formed in the DIF's scrambled bin order, no reordering.
 //! 3. **Pick** local maxima of `|c|` whose quality `q = |c| / √(Σ|r|² · Σ|y_window|²)` (the
 //!    normalised correlation, 0..1, Cauchy–Schwarz) is at least [`QUALITY_MIN`]; the strongest
 //!    one within [`GUARD`] baseband samples is the emission (one output per emission: echoes
@@ -224,13 +225,17 @@ impl Picker {
         self.ring[self.newest.wrapping_sub(back) % RING]
     }
 
-    /// Normalised correlation of `l` if it is a local maximum of |c| between `a` and `n`.
-    fn peak_quality(a: &Lag, l: &Lag, n: &Lag, template_energy: f32) -> Option<f32> {
+    /// Normalised correlation of `l` if it is a local maximum of |c| between `a` and `n` and
+    /// reaches `min`. The test is on the squares: the square root (a software routine on the
+    /// Cortex-M4F, ≈ 100 instructions) is taken only for a peak that passes, about one local
+    /// maximum in a hundred in noise.
+    fn peak_quality(a: &Lag, l: &Lag, n: &Lag, template_energy: f32, min: f32) -> Option<f32> {
         let mag = l.c.norm_sqr();
         if mag < a.c.norm_sqr() || mag <= n.c.norm_sqr() || l.energy <= 0.0 {
             return None;
         }
-        Some(libm::sqrtf(mag / (template_energy * l.energy)))
+        let q2 = mag / (template_energy * l.energy);
+        (q2 >= min * min).then(|| libm::sqrtf(q2)).filter(|&q| q >= min)
     }
 
     fn take(
@@ -254,10 +259,9 @@ impl Picker {
             return;
         }
         let (a, b) = (self.at(2), self.at(1));
-        let Some(q) = Self::peak_quality(&a, &b, &lag, template_energy) else { return };
-        if q < QUALITY_MIN {
+        let Some(q) = Self::peak_quality(&a, &b, &lag, template_energy, QUALITY_MIN) else {
             return;
-        }
+        };
         if self.has_pending && (q <= self.best_q || b.m > self.best_m + GUARD) {
             return;
         }
@@ -273,11 +277,11 @@ impl Picker {
             if p.c.norm_sqr() < floor {
                 continue;
             }
-            if let Some(pq) = Self::peak_quality(&pa, &p, &pn, template_energy) {
-                if pq >= FIRST_PATH_QUALITY_MIN {
-                    first = ([pa, p, pn], pq);
-                    break;
-                }
+            if let Some(pq) =
+                Self::peak_quality(&pa, &p, &pn, template_energy, FIRST_PATH_QUALITY_MIN)
+            {
+                first = ([pa, p, pn], pq);
+                break;
             }
         }
         self.has_pending = true;
@@ -302,7 +306,7 @@ pub struct Detector {
     /// Baseband samples of the transform being filled.
     buf: [Complex32; FFT_LEN],
     fill: usize,
-    /// Template spectrum, scaled by 1/FFT_LEN.
+    /// Template spectrum, scaled by 1/FFT_LEN, in [`crate::fft::dif_512`]'s scrambled order.
     spectrum: [Complex32; FFT_LEN],
     /// Σ|r|² of the template.
     template_energy: f32,
@@ -398,9 +402,9 @@ impl Detector {
             self.ratio[i] = (row[2] - row[0]) / row[1];
             self.gain[i] = row[1] / aligned;
         }
-        let spec = microfft::complex::cfft_512(&mut self.buf);
+        crate::fft::dif_512(&mut self.buf);
         let scale = 1.0 / FFT_LEN as f32;
-        for (s, &f) in self.spectrum.iter_mut().zip(spec.iter()) {
+        for (s, &f) in self.spectrum.iter_mut().zip(self.buf.iter()) {
             *s = f * scale;
         }
         self.restart(0);
@@ -549,12 +553,14 @@ impl Detector {
         // lag j = Σ |buf[j .. j + TEMPLATE_LEN]|².
         let pw = |i: usize, power: &[f32]| if i < HOP { power[keep + i] } else { power[i - HOP] };
         let mut energy: f32 = (0..TEMPLATE_LEN).map(|i| pw(i, power)).sum();
-        // Circular correlation: conj(FFT(conj(Y) · R)) / N.
-        let spec = microfft::complex::cfft_512(&mut self.buf);
-        for (y, r) in spec.iter_mut().zip(&self.spectrum) {
+        // Circular correlation: conj(FFT(conj(Y) · R)) / N, both spectra in the scrambled
+        // order of the radix-4 DIF, the second transform a DIT taking that order.
+        crate::fft::dif_512(&mut self.buf);
+        for (y, r) in self.buf.iter_mut().zip(&self.spectrum) {
             *y = y.conj() * r;
         }
-        let corr = microfft::complex::cfft_512(&mut self.buf);
+        crate::fft::dit_512(&mut self.buf);
+        let corr = &self.buf;
         let m0 = self.next_out / DECIMATION as u64 - FFT_LEN as u64;
         for (j, c) in corr[..HOP].iter().enumerate() {
             let lag = Lag { m: m0 + j as u64, c: c.conj(), energy: energy.max(0.0) };

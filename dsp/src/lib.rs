@@ -32,6 +32,7 @@ mod config;
 pub mod doa;
 mod error;
 pub mod features;
+pub mod fft;
 pub mod frontend;
 pub mod gcc_phat;
 mod geometry;

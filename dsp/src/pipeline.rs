@@ -463,7 +463,13 @@ impl Pipeline {
                 }
             } else if n == 512 {
                 if let Some(buf) = fft_buf.first_chunk_mut::<512>() {
-                    gcc_phat::phat_band(microfft::real::rfft_512(buf), self.first_bin, unit);
+                    // The band only, each bin PHAT-weighted as it is formed.
+                    let mut out = unit.chunks_exact_mut(2);
+                    crate::fft::rfft_512_bins(buf, self.first_bin, nb, |x| {
+                        if let Some(o) = out.next() {
+                            gcc_phat::phat_unit(x, o);
+                        }
+                    });
                 }
             } else if let Some(buf) = fft_buf.first_chunk_mut::<256>() {
                 gcc_phat::phat_band(microfft::real::rfft_256(buf), self.first_bin, unit);

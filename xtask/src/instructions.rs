@@ -210,9 +210,10 @@ fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
 
 /// Functions that are a stage, or part of one, wherever they are inlined: the innermost of
 /// these in an inline chain decides.
-const STAGE_FUNCTIONS: [(&str, Probe); 19] = [
+const STAGE_FUNCTIONS: [(&str, Probe); 21] = [
     ("aim_wire::", Probe::Encode),
     ("aim_dsp::gcc_phat::phat_band", Probe::Phat),
+    ("aim_dsp::gcc_phat::phat_unit", Probe::Phat),
     ("aim_dsp::gcc_phat::accumulate_cross", Probe::Phat),
     ("aim_dsp::gcc_phat::weight_by_coherence", Probe::Inverse),
     ("aim_dsp::gcc_phat::estimate_delay", Probe::Inverse),
@@ -229,6 +230,9 @@ const STAGE_FUNCTIONS: [(&str, Probe); 19] = [
     ("aim_dsp::pipeline::Pipeline::emit_snippets", Probe::Snippet),
     // The pipeline's steps: what they do outside the functions above.
     ("aim_dsp::pipeline::Pipeline::spatial_block", Probe::Fft),
+    // The spatial path's Q15 conversion (its only caller): without this line it counted as
+    // `other` or `fft` as the compiler's inline records happened to fall.
+    ("aim_dsp::frontend::to_q15", Probe::Fft),
     ("aim_dsp::pipeline::Pipeline::estimate_direction", Probe::Doa),
     ("aim_dsp::pipeline::Pipeline::spectral_block", Probe::Bpf),
     ("aim_dsp::pipeline::", Probe::PipelineOther),
