@@ -100,26 +100,39 @@ fn add_j(a: Complex32, b: Complex32) -> Complex32 {
     Complex32::new(a.re - b.im, a.im + b.re)
 }
 
-/// One radix-4 decimation-in-frequency pass over groups of `4·tw.len()` points, `tw` from
-/// [`pass_twiddles`] (groups of 16 points or more).
+/// Runs `butterfly(a, b, c, d, [w¹, w², w³])` on every quadruple `n, n + Q, n + 2Q, n + 3Q` of
+/// every group of `4Q` points, `Q = tw.len()`, with that `n`'s twiddles from
+/// [`pass_twiddles`].
 #[inline(always)]
-fn dif4_pass(x: &mut [Complex32], tw: &[[Complex32; 3]]) {
+fn radix4_pass(
+    x: &mut [Complex32],
+    tw: &[[Complex32; 3]],
+    butterfly: impl Fn(&mut Complex32, &mut Complex32, &mut Complex32, &mut Complex32, &[Complex32; 3]),
+) {
     let q = tw.len();
     for group in x.chunks_exact_mut(4 * q) {
         let (a, rest) = group.split_at_mut(q);
         let (b, rest) = rest.split_at_mut(q);
         let (c, d) = rest.split_at_mut(q);
-        for (((a, b), (c, d)), [w1, w2, w3]) in
+        for (((a, b), (c, d)), w) in
             a.iter_mut().zip(b.iter_mut()).zip(c.iter_mut().zip(d.iter_mut())).zip(tw)
         {
-            let (t0, t1) = (*a + *c, *a - *c);
-            let (t2, t3) = (*b + *d, *b - *d);
-            *a = t0 + t2;
-            *b = mul(sub_j(t1, t3), *w1);
-            *c = mul(t0 - t2, *w2);
-            *d = mul(add_j(t1, t3), *w3);
+            butterfly(a, b, c, d, w);
         }
     }
+}
+
+/// One radix-4 decimation-in-frequency pass (groups of 16 points or more).
+#[inline(always)]
+fn dif4_pass(x: &mut [Complex32], tw: &[[Complex32; 3]]) {
+    radix4_pass(x, tw, |a, b, c, d, [w1, w2, w3]| {
+        let (t0, t1) = (*a + *c, *a - *c);
+        let (t2, t3) = (*b + *d, *b - *d);
+        *a = t0 + t2;
+        *b = mul(sub_j(t1, t3), *w1);
+        *c = mul(t0 - t2, *w2);
+        *d = mul(add_j(t1, t3), *w3);
+    });
 }
 
 /// The last radix-4 DIF pass (groups of 4, every twiddle 1).
@@ -135,26 +148,18 @@ fn dif4_last(x: &mut [Complex32]) {
     }
 }
 
-/// One radix-4 decimation-in-time pass over groups of `4·tw.len()` points (16 or more).
+/// One radix-4 decimation-in-time pass (groups of 16 points or more).
 #[inline(always)]
 fn dit4_pass(x: &mut [Complex32], tw: &[[Complex32; 3]]) {
-    let q = tw.len();
-    for group in x.chunks_exact_mut(4 * q) {
-        let (a, rest) = group.split_at_mut(q);
-        let (b, rest) = rest.split_at_mut(q);
-        let (c, d) = rest.split_at_mut(q);
-        for (((a, b), (c, d)), [w1, w2, w3]) in
-            a.iter_mut().zip(b.iter_mut()).zip(c.iter_mut().zip(d.iter_mut())).zip(tw)
-        {
-            let (bb, cc, dd) = (mul(*b, *w1), mul(*c, *w2), mul(*d, *w3));
-            let (t0, t1) = (*a + cc, *a - cc);
-            let (t2, t3) = (bb + dd, bb - dd);
-            *a = t0 + t2;
-            *b = sub_j(t1, t3);
-            *c = t0 - t2;
-            *d = add_j(t1, t3);
-        }
-    }
+    radix4_pass(x, tw, |a, b, c, d, [w1, w2, w3]| {
+        let (bb, cc, dd) = (mul(*b, *w1), mul(*c, *w2), mul(*d, *w3));
+        let (t0, t1) = (*a + cc, *a - cc);
+        let (t2, t3) = (bb + dd, bb - dd);
+        *a = t0 + t2;
+        *b = sub_j(t1, t3);
+        *c = t0 - t2;
+        *d = add_j(t1, t3);
+    });
 }
 
 /// The first radix-4 DIT pass (groups of 4, every twiddle 1): the same butterfly as
