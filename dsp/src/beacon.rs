@@ -142,6 +142,49 @@ pub fn waveform_at(t: f64) -> f64 {
     env * libm::cos(phase)
 }
 
+/// [`waveform_at`] at whole input samples, from tables of its pulse (sin² at the 48 sample
+/// offsets within a chip) and its carrier (cos at the 8 phases of 18 kHz at 48 kHz), computed
+/// by the same expressions: the same bits, with two multiplications and an addition per sample
+/// instead of software sines (≈ 10 k instructions a sample on the Cortex-M4F, which made
+/// [`Detector::configure`] take about 10 s on the chip).
+struct SampledWaveform {
+    /// sin²(π u / PULSE_SAMPLES), u = 0 .. PULSE_SAMPLES.
+    pulse: [f64; PULSE_SAMPLES],
+    /// cos(3π/4 · r), r = 0 .. 8.
+    carrier: [f64; 8],
+}
+
+impl SampledWaveform {
+    fn new() -> Self {
+        let pulse = core::array::from_fn(|u| {
+            let s = libm::sin(core::f64::consts::PI * u as f64 / PULSE_SAMPLES as f64);
+            s * s
+        });
+        let carrier = core::array::from_fn(|r| libm::cos(0.75 * core::f64::consts::PI * r as f64));
+        Self { pulse, carrier }
+    }
+
+    /// `waveform_at(t as f64)`.
+    fn at(&self, t: usize) -> f64 {
+        if t == 0 || t >= LEN {
+            return 0.0;
+        }
+        let hi = t / CHIP_SAMPLES;
+        let mut env = 0.0;
+        for k in [hi.wrapping_sub(1), hi] {
+            if k < CHIPS {
+                let u = t - CHIP_SAMPLES * k;
+                if u < PULSE_SAMPLES {
+                    // chip · s · s with chip = ±1: ±(s · s), the same rounding.
+                    let p = self.pulse[u];
+                    env += if CHIP_TABLE[k] > 0 { p } else { -p };
+                }
+            }
+        }
+        env * self.carrier[t % 8]
+    }
+}
+
 /// One detected emission.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Beacon {
@@ -359,14 +402,17 @@ impl Detector {
                 self.taps_im[k] = 0.0;
             }
         }
-        // The template and its offset copies: the filter over the waveform delayed by d.
+        // The template and its offset copies: the filter over the waveform delayed by d. The
+        // waveform is read at whole input samples only, from its pulse and carrier tables
+        // (`SampledWaveform`: the bits of `waveform_at`, without a software sine per sample).
+        let wave = SampledWaveform::new();
         let (taps_re, taps_im) = (self.taps_re, self.taps_im);
         let filtered = |d: isize, m: isize| -> Complex32 {
             let mut acc = ZERO;
             for k in 1..TAPS {
                 let t = DECIMATION as isize * m - k as isize - d;
                 if t > 0 && t < LEN as isize {
-                    let x = waveform_at(t as f64) as f32;
+                    let x = wave.at(t as usize) as f32;
                     let (re, im) = if k < HALF {
                         (taps_re[k], taps_im[k])
                     } else {
@@ -384,15 +430,20 @@ impl Detector {
             energy += b.norm_sqr();
         }
         self.template_energy = energy;
-        // Coarse table: |c| at lags −1, 0, 1 for the waveform delayed by d samples.
+        // Coarse table: |c| at lags −1, 0, 1 for the waveform delayed by d samples. The delayed
+        // copy at baseband samples −1 ..= TEMPLATE_LEN is formed once per d (in `spectrum`,
+        // free until the end) and read at the three lags.
         let mut mags = [[0.0f32; 3]; 2 * OFFSETS + 1];
         for (i, row) in mags.iter_mut().enumerate() {
             let d = i as isize - OFFSETS as isize;
+            let copy = &mut self.spectrum[..TEMPLATE_LEN + 2];
+            for (m, c) in copy.iter_mut().enumerate() {
+                *c = filtered(d, m as isize - 1);
+            }
             for (j, v) in row.iter_mut().enumerate() {
-                let lag = j as isize - 1;
                 let mut acc = ZERO;
-                for (m, r) in self.buf[..TEMPLATE_LEN].iter().enumerate() {
-                    acc += filtered(d, m as isize + lag) * r.conj();
+                for (y, r) in copy[j..].iter().zip(&self.buf[..TEMPLATE_LEN]) {
+                    acc += *y * r.conj();
                 }
                 *v = libm::sqrtf(acc.norm_sqr());
             }
@@ -628,6 +679,14 @@ impl Default for Detector {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_sampled_waveform_has_the_bits_of_waveform_at() {
+        let wave = SampledWaveform::new();
+        for t in 0..LEN + 30 {
+            assert_eq!(wave.at(t).to_bits(), waveform_at(t as f64).to_bits(), "t = {t}");
+        }
+    }
 
     /// Words of a signal: `amp` · waveform starting at `start` (real), plus white noise of
     /// `noise` rms (fraction of full scale), `len` samples.
