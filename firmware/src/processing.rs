@@ -133,9 +133,11 @@ pub struct Processing {
 }
 
 impl Processing {
-    /// Builds the pipeline (once) and the `Hello` frame for this board: its geometry and
-    /// rates, and its start (`start`: reset cause, boot count, unique ID, the last panic).
+    /// Takes the configured pipeline ([`pipeline`]) and builds the `Hello` frame for this board:
+    /// its geometry and rates, and its start (`start`: reset cause, boot count, unique ID, the
+    /// last panic).
     pub fn new(
+        pipeline: &'static mut Pipeline,
         cycles: CycleCounter,
         watchdog: IndependentWatchdog<'static, IWDG1>,
         start: &StartReport,
@@ -145,7 +147,7 @@ impl Processing {
         let mut hello = from_dsp::hello(&config, [major, minor, patch]);
         start.fill_hello(&mut hello);
         Self {
-            pipeline: pipeline(),
+            pipeline,
             hello: aim_wire::Body::Hello(hello),
             block_len: config.block_len as u64,
             sink: FrameSink::new(config::array_id(&start.unique_id)),
