@@ -41,6 +41,7 @@ mod output;
 pub mod pdm;
 pub mod pipeline;
 pub mod snippet;
+mod trig;
 pub mod window;
 
 pub use config::Config;
