@@ -253,6 +253,27 @@ impl SpectralPath {
         first * (self.decimator.factor() * self.mono_decimation) as u64
     }
 
+    /// Decimated samples produced since [`SpectralPath::configure`].
+    pub fn produced(&self) -> u64 {
+        self.produced
+    }
+
+    /// Input samples per decimated sample (6 at 48 kHz, 2 at 16 kHz).
+    pub fn input_per_output(&self) -> usize {
+        self.decimator.factor() * self.mono_decimation
+    }
+
+    /// The `len` decimated samples from number `first` (counted as [`SpectralPath::produced`])
+    /// when they are all still in the ring and do not wrap in it.
+    pub fn recent(&self, first: u64, len: usize) -> Option<&[f32]> {
+        let end = first.checked_add(len as u64)?;
+        if end > self.produced || self.produced - first > ANALYSIS_LEN as u64 {
+            return None;
+        }
+        let at = (first % ANALYSIS_LEN as u64) as usize;
+        self.ring.get(at..at + len)
+    }
+
     /// Input-rate samples spanned by one analysis window.
     pub fn window_span_samples(&self) -> u32 {
         (ANALYSIS_LEN * self.decimator.factor() * self.mono_decimation) as u32

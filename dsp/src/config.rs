@@ -58,6 +58,11 @@ pub struct Config {
     /// BPF analyses (one per 0.256 s) between two `Mfcc` outputs ([`crate::idframe`]); 0: no
     /// `Mfcc` outputs. Default 1 (3.9 per second).
     pub mfcc_interval: u32,
+    /// Send the array's mean signal as a contiguous stream of [`crate::snippet::Snippet`]s
+    /// (8 kHz, 32 ms each, 31.25 per second; about 9 % of a 921 600 Bd link) for inter-array
+    /// delays. Default true: there is no downlink to ask for them, and a board in a
+    /// multi-array site must send them from the start; a single-array site may turn them off.
+    pub snippets: bool,
 }
 
 impl Config {
@@ -92,6 +97,7 @@ impl Config {
             bpf_max_rate_per_s: 0.1,
             health_interval_blocks: 48,
             mfcc_interval: 1,
+            snippets: true,
         }
     }
 

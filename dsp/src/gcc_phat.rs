@@ -107,15 +107,22 @@ pub fn rsqrt(x: f32) -> f32 {
 /// `re, im` pairs: `out[2b], out[2b+1]` = X(first_bin + b) / |X(first_bin + b)|.
 pub fn phat_band(spectrum: &[Complex32], first_bin: usize, out: &mut [f32]) {
     for (o, x) in out.chunks_exact_mut(2).zip(&spectrum[first_bin..]) {
-        let p = x.re * x.re + x.im * x.im;
-        if p > PHAT_EPSILON * PHAT_EPSILON {
-            let inv = rsqrt(p);
-            o[0] = x.re * inv;
-            o[1] = x.im * inv;
-        } else {
-            o[0] = 0.0;
-            o[1] = 0.0;
-        }
+        phat_unit(*x, o);
+    }
+}
+
+/// Writes `x / |x|` into `o[0], o[1]` (`0, 0` for a bin below [`PHAT_EPSILON`]): one bin of
+/// [`phat_band`].
+#[inline(always)]
+pub fn phat_unit(x: Complex32, o: &mut [f32]) {
+    let p = x.re * x.re + x.im * x.im;
+    if p > PHAT_EPSILON * PHAT_EPSILON {
+        let inv = rsqrt(p);
+        o[0] = x.re * inv;
+        o[1] = x.im * inv;
+    } else {
+        o[0] = 0.0;
+        o[1] = 0.0;
     }
 }
 

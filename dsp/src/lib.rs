@@ -19,17 +19,20 @@
 //! rotor combs, detection),
 //! [`features`] (drone-identification features of 16 kHz frames: log-mel, MFCC, BPF harmonics),
 //! [`idframe`] (the same kinds of features from the BPF path's spectrum: the chip's MFCC output),
-//! [`pipeline`] (the streaming glue).
+//! [`snippet`] (the mean signal at 8 kHz for inter-array delays), [`pipeline`] (the streaming
+//! glue).
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod beacon;
 pub mod bpf;
 pub mod comb;
 mod config;
 pub mod doa;
 mod error;
 pub mod features;
+pub mod fft;
 pub mod frontend;
 pub mod gcc_phat;
 mod geometry;
@@ -37,6 +40,8 @@ pub mod idframe;
 mod output;
 pub mod pdm;
 pub mod pipeline;
+pub mod snippet;
+mod trig;
 pub mod window;
 
 pub use config::Config;
@@ -47,6 +52,7 @@ pub use geometry::{
 pub use idframe::IdFeatures;
 pub use output::{Doa, Health, Output, Peak, Peaks};
 pub use pipeline::{GapStats, Pipeline};
+pub use snippet::Snippet;
 
 /// Fewest microphones an array may have.
 pub const MIN_MICS: usize = 4;

@@ -1,4 +1,5 @@
-//! What the pipeline emits: direction of arrival, BPF peaks, identification features and health, each stamped with the
+//! What the pipeline emits: direction of arrival, BPF peaks, identification features, health and
+//! beacon arrivals, each stamped with the
 //! sample index (the array's own clock) of the first sample it describes.
 
 /// One result of the streaming [`crate::Pipeline`].
@@ -12,6 +13,10 @@ pub enum Output {
     Health(Health),
     /// Drone-identification features of a BPF analysis window ([`crate::idframe`]).
     Mfcc(crate::idframe::IdFeatures),
+    /// A synchronisation beacon's arrival at microphone 0 ([`crate::beacon`]), at 48 kHz only.
+    Beacon(crate::beacon::Beacon),
+    /// 32 ms of the array's mean signal at 8 kHz, for inter-array delays ([`crate::snippet`]).
+    Snippet(crate::snippet::Snippet),
 }
 
 /// Direction of arrival, far field, planar array (source on the +z side).

@@ -24,11 +24,13 @@
 
 use microfft::Complex32;
 
+use crate::beacon::{self, Detector};
 use crate::bpf::{SpectralPath, ANALYSIS_LEN};
 use crate::doa::{self, Pair};
 use crate::frontend::{self, FrontEnd};
 use crate::gcc_phat::{self, DelayEstimate, Twiddles};
 use crate::idframe::IdExtractor;
+use crate::snippet::{self, Snippet, SNIPPET_LEN};
 use crate::{
     Config, ConfigError, Doa, Health, Output, MAX_BAND_BINS, MAX_BLOCK_LEN, MAX_MICS, MAX_PAIRS,
 };
@@ -53,6 +55,7 @@ const MAX_TDM_SLOTS: usize = 16;
 /// microphones after it, or the whole BPF transform. Both uses fit exactly.
 const SCRATCH_LEN: usize = ANALYSIS_LEN;
 const _: () = assert!(MAX_BLOCK_LEN + MAX_MICS * 2 * MAX_BAND_BINS <= SCRATCH_LEN);
+const _: () = assert!(beacon::SCRATCH_LEN <= SCRATCH_LEN);
 
 /// The on-chip processing of one array, in fixed memory. See the module docs for output rates.
 #[derive(Debug, Clone)]
@@ -113,6 +116,11 @@ pub struct Pipeline {
     /// The spectral path's own stamp of its first sample after the last gap; an analysis
     /// window that starts earlier holds samples from before the gap and is dropped.
     spectral_clean_from: u64,
+    /// Beacon detector on microphone 0's input-rate words (48 kHz only).
+    beacon: Detector,
+    beacon_on: bool,
+    /// Decimated sample (spectral path's count) where the next snippet starts.
+    next_snippet: u64,
 }
 
 impl Pipeline {
@@ -158,6 +166,9 @@ impl Pipeline {
             gap_stats: GapStats { gaps: 0, frames_lost: 0, outputs_dropped: 0 },
             spectral_skipped: 0,
             spectral_clean_from: 0,
+            beacon: Detector::empty(),
+            beacon_on: false,
+            next_snippet: 0,
         }
     }
 
@@ -200,6 +211,10 @@ impl Pipeline {
         crate::window::hann(&mut self.window[..self.fft_len]);
         self.spectral.configure(config.sample_rate_hz, self.decimation);
         self.id.configure();
+        self.beacon_on = config.sample_rate_hz == beacon::SAMPLE_RATE_HZ;
+        if self.beacon_on {
+            self.beacon.configure();
+        }
         self.reset_stream();
         self.configured = true;
         Ok(())
@@ -219,6 +234,7 @@ impl Pipeline {
         self.gap_stats = GapStats::default();
         self.spectral_skipped = 0;
         self.spectral_clean_from = 0;
+        self.next_snippet = 0;
         self.analyses_since_mfcc = 0;
         self.delays = [DelayEstimate::default(); MAX_PAIRS];
         for c in &mut self.cross {
@@ -249,6 +265,13 @@ impl Pipeline {
             return;
         }
         let slots = self.config.tdm_slots;
+        if self.beacon_on {
+            // Microphone 0's words of this chunk: the first is where the next frame starts.
+            let first = (slots - self.slot) % slots;
+            if let Some(mic0) = words.get(first..) {
+                self.beacon.push(mic0, slots, &mut self.scratch, &mut |b| sink(Output::Beacon(b)));
+            }
+        }
         let n = self.fft_len;
         let d = self.decimation;
         let mut words = words;
@@ -331,6 +354,11 @@ impl Pipeline {
             );
         }
         let next = self.block_start + consumed + partial + lost_frames;
+        if self.beacon_on {
+            // The detector has seen mic 0 of every frame begun so far.
+            debug_assert_eq!(self.beacon.next_index() + lost_frames, next);
+            self.beacon.gap(lost_frames);
+        }
         // The partial block and a DoA average in progress would span the gap.
         if self.fill > 0 || open || partial > 0 || self.averaged > 0 {
             self.gap_stats.outputs_dropped = self.gap_stats.outputs_dropped.wrapping_add(1);
@@ -400,23 +428,33 @@ impl Pipeline {
         let nb = self.band_bins;
         let (fft_buf, units) = self.scratch.split_at_mut(MAX_BLOCK_LEN);
         let [mono, others @ ..] = &mut self.block;
+        // Out of line, on opaque slices: compiled inline (or with the slices' addresses known),
+        // the loops addressed the pipeline's fields from its static address and rebuilt the
+        // addresses every sample (QEMU cost, fft stage).
+        #[inline(never)]
+        fn first(fft_buf: &mut [f32], mono: &mut [i32], window: &[f32], shift: u32) {
+            let (fft_buf, mono, window) = core::hint::black_box((fft_buf, mono, window));
+            for ((x, s), &w) in fft_buf.iter_mut().zip(mono).zip(window) {
+                let q = frontend::to_q15(*s, shift);
+                *x = f32::from(q) * w;
+                *s = i32::from(q);
+            }
+        }
+        #[inline(never)]
+        fn other(fft_buf: &mut [f32], ch: &[i32], mono: &mut [i32], window: &[f32], shift: u32) {
+            let (fft_buf, ch, mono, window) = core::hint::black_box((fft_buf, ch, mono, window));
+            for (((x, &s), m), &w) in fft_buf.iter_mut().zip(ch).zip(mono).zip(window) {
+                let q = frontend::to_q15(s, shift);
+                *x = f32::from(q) * w;
+                *m += i32::from(q);
+            }
+        }
         for mic in 0..self.mics {
             let window = &self.window[..n];
             if mic == 0 {
-                for ((x, s), &w) in fft_buf[..n].iter_mut().zip(&mut mono[..n]).zip(window) {
-                    let q = frontend::to_q15(*s, shift);
-                    *x = f32::from(q) * w;
-                    *s = i32::from(q);
-                }
+                first(&mut fft_buf[..n], &mut mono[..n], window, shift);
             } else {
-                let ch = &others[mic - 1][..n];
-                for (((x, &s), m), &w) in
-                    fft_buf[..n].iter_mut().zip(ch).zip(&mut mono[..n]).zip(window)
-                {
-                    let q = frontend::to_q15(s, shift);
-                    *x = f32::from(q) * w;
-                    *m += i32::from(q);
-                }
+                other(&mut fft_buf[..n], &others[mic - 1][..n], &mut mono[..n], window, shift);
             }
             let unit = &mut units[mic * 2 * MAX_BAND_BINS..][..2 * nb];
             if n == 1024 {
@@ -425,7 +463,13 @@ impl Pipeline {
                 }
             } else if n == 512 {
                 if let Some(buf) = fft_buf.first_chunk_mut::<512>() {
-                    gcc_phat::phat_band(microfft::real::rfft_512(buf), self.first_bin, unit);
+                    // The band only, each bin PHAT-weighted as it is formed.
+                    let mut out = unit.chunks_exact_mut(2);
+                    crate::fft::rfft_512_bins(buf, self.first_bin, nb, |x| {
+                        if let Some(o) = out.next() {
+                            gcc_phat::phat_unit(x, o);
+                        }
+                    });
                 }
             } else if let Some(buf) = fft_buf.first_chunk_mut::<256>() {
                 gcc_phat::phat_band(microfft::real::rfft_256(buf), self.first_bin, unit);
@@ -491,6 +535,9 @@ impl Pipeline {
         let bits = shift + 15 - self.q_exponent() as u32;
         let scale = 1.0 / ((1u64 << bits) as f32 * self.mics as f32);
         let due = self.spectral.push_block(&self.block[0][..self.fft_len], scale);
+        if self.config.snippets {
+            self.emit_snippets(sink);
+        }
         if due {
             if self.spectral.window_start_sample() < self.spectral_clean_from {
                 // The window holds samples from before a gap.
@@ -512,6 +559,29 @@ impl Pipeline {
                     sink(Output::Mfcc(f));
                 }
             }
+        }
+    }
+
+    /// Every whole [`SNIPPET_LEN`] of decimated samples the spectral path has made since the
+    /// last snippet, quantised ([`crate::snippet`]); one that holds samples from before a gap
+    /// is dropped (and counted), so the stream stays contiguous between gaps.
+    fn emit_snippets(&mut self, sink: &mut impl FnMut(Output)) {
+        let factor = self.spectral.input_per_output() as u64;
+        while self.spectral.produced() >= self.next_snippet + SNIPPET_LEN as u64 {
+            let first = self.next_snippet;
+            self.next_snippet += SNIPPET_LEN as u64;
+            let Some(x) = self.spectral.recent(first, SNIPPET_LEN) else { continue };
+            if first * factor < self.spectral_clean_from {
+                self.gap_stats.outputs_dropped = self.gap_stats.outputs_dropped.wrapping_add(1);
+                continue;
+            }
+            let mut s = Snippet {
+                sample_index: first * factor + self.spectral_skipped,
+                decimation: factor as u8,
+                ..Snippet::default()
+            };
+            s.exponent = snippet::quantize(x, &mut s.samples);
+            sink(Output::Snippet(s));
         }
     }
 
@@ -573,6 +643,39 @@ mod tests {
     fn memory_budget() {
         let size = core::mem::size_of::<Pipeline>();
         assert!(size <= 128 * 1024, "Pipeline is {size} bytes");
+    }
+
+    #[test]
+    fn beacon_on_mic_0_is_reported_on_the_input_clock() {
+        // Oracle: the beacon waveform placed at a known real start on slot 0 (other slots a
+        // quiet tone); pushed in odd chunks that split frames, with a gap before it.
+        let config = Config::new(Geometry::respeaker_6mic(), 48_000);
+        let mut p = Pipeline::new(&config).unwrap();
+        let (start, frames, slots) = (20_000.37f64, 40_000usize, config.tdm_slots);
+        let mut words = vec![0i32; frames * slots];
+        for (n, frame) in words.chunks_exact_mut(slots).enumerate() {
+            let b = 0.01 * beacon::waveform_at(n as f64 + 651.0 - start);
+            frame[0] = ((b * 8_388_608.0).round() as i32) << 8;
+            for (mic, w) in frame[1..6].iter_mut().enumerate() {
+                let t = libm::sin(0.05 * (n + mic) as f64);
+                *w = ((0.001 * t * 8_388_608.0) as i32) << 8;
+            }
+        }
+        let mut found = Vec::new();
+        let mut sink = |o: Output| {
+            if let Output::Beacon(b) = o {
+                found.push(b)
+            }
+        };
+        p.push(&words[..1003], &mut sink);
+        // Frame 125 was begun (its index is used); frame 126 is board sample 126 + 651.
+        p.gap(651);
+        for chunk in words[126 * slots..].chunks(997) {
+            p.push(chunk, &mut sink);
+        }
+        assert_eq!(found.len(), 1, "{found:?}");
+        let got = found[0].sample_index as f64 + f64::from(found[0].fraction);
+        assert!((got - start).abs() < 0.02, "{got} vs {start}");
     }
 
     #[test]

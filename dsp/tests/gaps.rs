@@ -42,6 +42,14 @@ fn peaks(outputs: &[Output]) -> Vec<Peaks> {
     outputs.iter().filter_map(|o| if let Output::Peaks(p) = o { Some(*p) } else { None }).collect()
 }
 
+fn snippets(out: &[Output]) -> Vec<aim_dsp::Snippet> {
+    out.iter().filter_map(|o| if let Output::Snippet(x) = o { Some(*x) } else { None }).collect()
+}
+
+fn snippet_span(x: &aim_dsp::Snippet) -> u32 {
+    (aim_dsp::snippet::SNIPPET_LEN * usize::from(x.decimation)) as u32
+}
+
 fn end(index: u64, span: u32) -> u64 {
     index + u64::from(span)
 }
@@ -86,6 +94,8 @@ fn a_gap_drops_the_outputs_spanning_it_counts_them_and_keeps_the_clock() {
         Output::Doa(d) => end(d.sample_index, d.span_samples) <= gap_at as u64,
         Output::Peaks(k) => end(k.sample_index, k.span_samples) <= gap_at as u64,
         Output::Mfcc(f) => end(f.sample_index, f.span_samples) <= gap_at as u64,
+        Output::Beacon(b) => end(b.sample_index, aim_dsp::beacon::LEN as u32) <= gap_at as u64,
+        Output::Snippet(x) => end(x.sample_index, snippet_span(x)) <= gap_at as u64,
         Output::Health(_) => false,
     };
     let ref_before: Vec<_> = ref_out.iter().filter(before).collect();
@@ -100,6 +110,8 @@ fn a_gap_drops_the_outputs_spanning_it_counts_them_and_keeps_the_clock() {
             Output::Doa(d) => (d.sample_index, end(d.sample_index, d.span_samples)),
             Output::Peaks(k) => (k.sample_index, end(k.sample_index, k.span_samples)),
             Output::Mfcc(f) => (f.sample_index, end(f.sample_index, f.span_samples)),
+            Output::Beacon(b) => (b.sample_index, end(b.sample_index, aim_dsp::beacon::LEN as u32)),
+            Output::Snippet(x) => (x.sample_index, end(x.sample_index, snippet_span(x))),
             Output::Health(_) => continue,
         };
         assert!(stop <= gap_at as u64 || start >= resume, "{o:?} spans the gap");
@@ -139,6 +151,14 @@ fn a_gap_drops_the_outputs_spanning_it_counts_them_and_keeps_the_clock() {
     assert_eq!(stats.outputs_dropped, 1 + (all - k.len()) as u32);
     assert_eq!(stats.outputs_dropped, 3);
 
+    // Snippets (256 samples at 8 kHz = 1 536 input samples): the 43 008 samples before the gap
+    // are 28 whole snippets, kept as they were; after the gap the stream goes on contiguous
+    // from the first sample after it (43 008 + 5 952 on the real clock), 53 snippets in the 80
+    // blocks; none dropped (the gap fell on a snippet boundary of the spectral path's count).
+    let expected: Vec<u64> =
+        (0..28u64).map(|k| k * 1536).chain((0..53u64).map(|k| 43_008 + 5_952 + k * 1536)).collect();
+    assert_eq!(snippets(&out).iter().map(|x| x.sample_index).collect::<Vec<_>>(), expected);
+
     // Health keeps coming, stamped on the real clock.
     let health: Vec<_> = out
         .iter()
@@ -175,13 +195,16 @@ fn a_gap_after_an_odd_frame_and_inside_a_frame_keeps_exact_stamps() {
         // blocks the pipeline processed would have produced but this run did not.
         let fed = (gap_at / 1024 + (frames - resume as usize) / 1024) * 1024;
         let mut contiguous = Pipeline::new(&config).unwrap();
-        let all = peaks(&common::run(&mut contiguous, &words[..fed * SLOTS])).len();
-        let windows_dropped = (all - peaks(&out).len()) as u32;
+        let whole = common::run(&mut contiguous, &words[..fed * SLOTS]);
+        let windows_dropped = (peaks(&whole).len() - peaks(&out).len()) as u32;
         assert!(windows_dropped >= 1, "a window spans the gap");
+        // The snippet in progress at the gap (the spectral path had not completed it).
+        let snippets_dropped = (snippets(&whole).len() - snippets(&out).len()) as u32;
+        assert_eq!(snippets_dropped, 1, "the snippet spanning the gap");
         let stats = p.gap_stats();
         assert_eq!(
             (stats.gaps, stats.frames_lost, stats.outputs_dropped),
-            (1, lost as u64, 1 + windows_dropped)
+            (1, lost as u64, 1 + windows_dropped + snippets_dropped)
         );
     }
 }

@@ -39,8 +39,9 @@ bind_interrupts!(
     }
 );
 
-/// Enables the instruction cache (the data cache stays off: DMA buffers need no maintenance,
-/// and the DSP state lives in DTCM, which is not cached anyway), installs the MPU stack guard
+/// Enables the instruction cache (the data cache stays off, so the DMA buffers in AXI SRAM
+/// need no maintenance; the DSP state beside them in AXI SRAM is therefore read uncached, see
+/// firmware/README.md "Memory"), installs the MPU stack guard
 /// ([`fault::install_stack_guard`]) and starts the DWT cycle counter. Call once at start-up,
 /// after `embassy_stm32::init`.
 pub fn init_core(mut core: cortex_m::Peripherals) -> stats::CycleCounter {

@@ -58,6 +58,13 @@ fn main() -> ! {
         clocks::sysclk_hz()
     );
 
+    // The pipeline is configured before the watchdog runs: `Pipeline::configure` computes the
+    // beacon detector's template in software double precision, ≈ 4.8 G instructions (≈ 10 s;
+    // BENCHMARKS.md "Firmware"), far beyond the 500 ms timeout, which would reset the board at
+    // every start.
+    let pipeline = processing::pipeline();
+    defmt::info!("DSP pipeline configured");
+
     aim_firmware::freeze_watchdog_in_debug();
     let mut watchdog = IndependentWatchdog::new(p.IWDG1, config::WATCHDOG_TIMEOUT_US);
     watchdog.unleash();
@@ -70,7 +77,7 @@ fn main() -> ! {
     let Ok(uart) = uplink::uplink_uart(p.USART3, p.PD8, p.DMA1_CH1) else {
         panic!("USART3 configuration rejected");
     };
-    let processing = processing::Processing::new(cycles, watchdog, &start);
+    let processing = processing::Processing::new(pipeline, cycles, watchdog, &start);
 
     interrupt::UART4.set_priority(Priority::P6);
     let spawner = EXECUTOR_CAPTURE.start(interrupt::UART4);

@@ -4,10 +4,8 @@
 //! same bytes) for the uplink queue.
 use aim_dsp::{ConfigError, Output, Pipeline};
 use aim_wire::from_dsp::{self, FirmwareCounters};
-use core::mem::MaybeUninit;
 use embassy_stm32::peripherals::IWDG1;
 use embassy_stm32::wdg::IndependentWatchdog;
-use static_cell::ConstStaticCell;
 
 use crate::boot::StartReport;
 use crate::capture::{Chunk, ChunkReceiver};
@@ -24,19 +22,17 @@ pub fn dsp_config() -> aim_dsp::Config {
     aim_dsp::Config::new(config::geometry(), config::SAMPLE_RATE_HZ)
 }
 
-/// The pipeline, in a static in DTCM, configured in place (call once).
+/// The pipeline, in a static in AXI SRAM, configured in place (call once).
 ///
-/// `Pipeline` is ≈ 115 KB and the stack ≈ 12 KB, so it must never exist as a value: neither
+/// `Pipeline` is ≈ 127 KB and the stack ≈ 12 KB, so it must never exist as a value: neither
 /// `Pipeline::new` (returns it by value) nor `StaticCell::init_with(Pipeline::empty)` (the
 /// compiler builds the value in the caller's frame, then copies it: a 114 KB stack frame in
-/// `main`, measured in the disassembly). A static of zeroed bytes lands in `.bss`, which the
-/// start-up code zeroes: no stack, no flash; `configure` then sets it up.
+/// `main`, measured in the disassembly). Nor does it fit in DTCM beside the other statics and
+/// the stack (`.bss` overflowed DTCM by 5.4 KB): it is a zero-filled static in AXI SRAM
+/// ([`dsp_state!`](crate::dsp_state): no stack, no flash, no start-up zeroing), and
+/// `configure` then sets it up.
 pub fn pipeline() -> &'static mut Pipeline {
-    static PIPELINE: ConstStaticCell<MaybeUninit<Pipeline>> =
-        ConstStaticCell::new(MaybeUninit::zeroed());
-    // SAFETY: `take` hands out the static once (it panics the second time), and nothing has
-    // written to it since the start-up code zeroed `.bss`.
-    let pipeline = unsafe { crate::dma_buffer::assume_zeroed(PIPELINE.take()) };
+    let pipeline = crate::dsp_state!(Pipeline);
     if let Err(error) = pipeline.configure(&dsp_config()) {
         config_rejected(&error);
     }
@@ -137,9 +133,11 @@ pub struct Processing {
 }
 
 impl Processing {
-    /// Builds the pipeline (once) and the `Hello` frame for this board: its geometry and
-    /// rates, and its start (`start`: reset cause, boot count, unique ID, the last panic).
+    /// Takes the configured pipeline ([`pipeline`]) and builds the `Hello` frame for this board:
+    /// its geometry and rates, and its start (`start`: reset cause, boot count, unique ID, the
+    /// last panic).
     pub fn new(
+        pipeline: &'static mut Pipeline,
         cycles: CycleCounter,
         watchdog: IndependentWatchdog<'static, IWDG1>,
         start: &StartReport,
@@ -149,7 +147,7 @@ impl Processing {
         let mut hello = from_dsp::hello(&config, [major, minor, patch]);
         start.fill_hello(&mut hello);
         Self {
-            pipeline: pipeline(),
+            pipeline,
             hello: aim_wire::Body::Hello(hello),
             block_len: config.block_len as u64,
             sink: FrameSink::new(config::array_id(&start.unique_id)),

@@ -22,6 +22,7 @@ use rand::{rngs::StdRng, Rng, SeedableRng};
 
 pub mod air;
 pub mod array;
+pub mod beacon;
 pub mod bpf_bench;
 pub mod drones;
 pub mod eval;
@@ -49,7 +50,7 @@ use filter::Gaussian;
 use flight::{ControlGains, FlightLog};
 use propagation::{Fixed, Medium, PathKind, Receiver, Trajectory};
 use scenario::{RotorSources, Scenario};
-use site::{Site, SiteArray, SiteObstacle, SiteRoom};
+use site::{Site, SiteArray, SiteBeacon, SiteObstacle, SiteRoom};
 use sound::SignalBlocks as _;
 use truth::{Truth, TruthRow};
 
@@ -448,6 +449,9 @@ pub fn simulate_to(
                 *outside.lock().expect("no panics while held") = Some(e);
             }
         }
+        for b in &scenario.beacons {
+            b.render(&medium, &paths, &rx, out);
+        }
         if let Some(tail) = &tail {
             // The sources the room reverberates: all but the straight-only rotor paths and
             // the diffuse field's plane waves.
@@ -705,6 +709,18 @@ fn make_site(s: &Scenario, c: f64) -> Site {
                 loss_db: o.loss_db,
             })
             .collect(),
+        // What a site surveys and publishes; never the speaker's (or any array's) clock.
+        beacons: s
+            .beacons
+            .iter()
+            .map(|b| SiteBeacon {
+                id: b.id,
+                position: b.position_m.into(),
+                period_s: b.period_s,
+                sequence: aim_dsp::beacon::SEQUENCE_NAME.into(),
+                level_db: b.level_db,
+            })
+            .collect(),
     }
 }
 
@@ -763,7 +779,8 @@ mod tests {
     #[test]
     fn site_file_holds_nothing_from_the_truth() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
-        // Five arrays with their own clocks, and an airframe drawn from a wide population.
+        // Five arrays with their own clocks, a beacon, and an airframe drawn from a wide
+        // population.
         let mut overrides = toml::Table::new();
         let airframe: toml::Table = toml::from_str(
             "wake_spread = 0.3\ncg_offset_mm = 2.0\nthrust_spread = 0.03\nchipped_probability = 1.0",
@@ -791,6 +808,12 @@ mod tests {
             "obstacle.min",
             "obstacle.max",
             "obstacle.loss_db",
+            "beacon",
+            "beacon.id",
+            "beacon.position",
+            "beacon.period_s",
+            "beacon.sequence",
+            "beacon.level_db",
         ];
         for k in &keys {
             assert!(allowed.contains(&k.as_str()), "site.toml carries `{k}`");
@@ -800,6 +823,9 @@ mod tests {
         let mut secrets: Vec<f64> =
             s.arrays.iter().flat_map(|a| [a.clock.offset_s, a.clock.drift_ppm]).collect();
         secrets.extend([airframe.wake_gain, airframe.cg_offset_m[0], airframe.cg_offset_m[1]]);
+        // The beacon's own clock and start are the loudspeaker's, not the site's.
+        assert!(!s.beacons.is_empty());
+        secrets.extend(s.beacons.iter().flat_map(|b| [b.clock_drift_ppm, b.start_s]));
         secrets.extend(&airframe.thrust_factor);
         for x in secrets.iter().filter(|x| **x != 0.0 && **x != 1.0) {
             assert!(!numbers.contains(x), "site.toml holds the truth's value {x}");

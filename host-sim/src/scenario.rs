@@ -47,6 +47,9 @@
 //! [[obstacle]] name, min = [x, y, z], max = [x, y, z], loss_db [20]
 //! [[noise]]   position = [x, y, z], centre_hz, bandwidth_hz [100], spl_db, distance_m [1]
 //! [diffuse_noise] spl_db, low_hz [100], high_hz [8000], directions [32]
+//! [[beacon]]  id [index + 1], position = [x, y, z], level_db [60] (RMS dB SPL at 1 m),
+//!             period_s [1], clock_drift_ppm [0] (the speaker's own clock; truth only),
+//!             start_s [0.5] (true time of the first emission) (`beacon`)
 //! [[array]]   id, geometry ["respeaker-6mic"] or positions = [[x, y], ...], position = [x, y, z],
 //!             yaw_deg [0], facing = "up" | "down" ["up"] (down: under a ceiling or shelf, turned
 //!             over about its x axis), clock_offset_s [0], clock_drift_ppm [0], self_noise_db [35],
@@ -234,6 +237,27 @@ fn d_bw() -> f64 {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
+struct FileBeacon {
+    id: Option<u8>,
+    position: [f64; 3],
+    #[serde(default = "d_beacon_level")]
+    level_db: f64,
+    #[serde(default = "d_one_f")]
+    period_s: f64,
+    #[serde(default)]
+    clock_drift_ppm: f64,
+    #[serde(default = "d_beacon_start")]
+    start_s: f64,
+}
+fn d_beacon_level() -> f64 {
+    60.0
+}
+fn d_beacon_start() -> f64 {
+    0.5
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct FileDiffuse {
     spl_db: f64,
     #[serde(default = "d_low")]
@@ -326,6 +350,8 @@ struct File {
     noise: Vec<FileNoise>,
     diffuse_noise: Option<FileDiffuse>,
     #[serde(default)]
+    beacon: Vec<FileBeacon>,
+    #[serde(default)]
     array: Vec<FileArray>,
     #[serde(default)]
     render: FileRender,
@@ -406,6 +432,8 @@ pub struct Scenario {
     pub noise: Vec<NoiseSource>,
     /// Diffuse noise.
     pub diffuse_noise: Option<DiffuseNoise>,
+    /// Synchronisation beacon loudspeakers.
+    pub beacons: Vec<crate::beacon::BeaconSpeaker>,
     /// Arrays.
     pub arrays: Vec<ArrayConfig>,
     /// Rendering settings.
@@ -777,6 +805,22 @@ impl Scenario {
         if let Some(d) = &diffuse_noise {
             d.validate(fs as f64)?;
         }
+        let mut beacons = Vec::new();
+        for (i, b) in f.beacon.into_iter().enumerate() {
+            let speaker = crate::beacon::BeaconSpeaker {
+                id: b.id.unwrap_or(i as u8 + 1),
+                position_m: Vector3::from(b.position),
+                level_db: b.level_db,
+                period_s: b.period_s,
+                clock_drift_ppm: b.clock_drift_ppm,
+                start_s: b.start_s,
+            };
+            speaker.validate()?;
+            beacons.push(speaker);
+        }
+        if !beacons.is_empty() && fs != aim_dsp::beacon::SAMPLE_RATE_HZ {
+            return Err(format!("[[beacon]] needs sample_rate_hz = 48000 (got {fs})"));
+        }
 
         if f.array.is_empty() {
             return Err("no [[array]]: the scenario needs at least one microphone array".into());
@@ -882,6 +926,7 @@ impl Scenario {
             obstacles,
             noise,
             diffuse_noise,
+            beacons,
             arrays,
             render,
         };

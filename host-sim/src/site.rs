@@ -22,6 +22,13 @@
 //! min = [6.5, 7.6, 0.0]           # box corners, m
 //! max = [9.5, 8.4, 2.0]
 //! loss_db = 15.0
+//!
+//! [[beacon]]                      # optional, any number: synchronisation loudspeakers
+//! id = 1                          # beacon id
+//! position = [8.0, 0.2, 1.5]      # loudspeaker, ENU m (surveyed)
+//! period_s = 1.0                  # nominal repetition period on the speaker's clock, s
+//! sequence = "aim-beacon-v1"      # name of the aim_dsp::beacon sequence
+//! level_db = 60.0                 # information: RMS dB SPL at 1 m
 //! ```
 //!
 //! Array frame: x right, y forward, z up (normal); azimuth from +x towards +y, zenith from +z.
@@ -81,6 +88,21 @@ pub struct SiteObstacle {
     pub loss_db: f64,
 }
 
+/// A synchronisation beacon: where it is and what it plays (never its clock).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SiteBeacon {
+    /// Beacon id.
+    pub id: u8,
+    /// Loudspeaker position, ENU m.
+    pub position: [f64; 3],
+    /// Nominal repetition period on the speaker's clock, s.
+    pub period_s: f64,
+    /// Name of the `aim_dsp::beacon` sequence.
+    pub sequence: String,
+    /// RMS level of an emission, dB SPL at 1 m (information).
+    pub level_db: f64,
+}
+
 /// The site file's content.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -98,6 +120,9 @@ pub struct Site {
     /// Obstacles.
     #[serde(default, rename = "obstacle", skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<SiteObstacle>,
+    /// Synchronisation beacons.
+    #[serde(default, rename = "beacon", skip_serializing_if = "Vec::is_empty")]
+    pub beacons: Vec<SiteBeacon>,
 }
 
 impl Site {

@@ -36,7 +36,7 @@ use std::collections::HashMap;
 
 use aim_wire::{Body, Frame, Hello};
 
-use crate::observation::{Bearing, BpfPeak, Input, Spectrum};
+use crate::observation::{BeaconHeard, Bearing, BpfPeak, Input, SnippetHeard, Spectrum};
 use crate::site::{ArrayPose, Site};
 
 /// Sample rate assumed before any `Hello` when the site file gives none, Hz.
@@ -276,6 +276,9 @@ impl Intake {
             }
             Body::Doa(d) => d.span_samples,
             Body::Peaks(p) => p.span_samples,
+            // A beacon arrival is an instant.
+            Body::Beacon(_) => 0,
+            Body::Snippet(x) => (x.samples.len() * usize::from(x.decimation)) as u32,
             // Health carries no observation and is stamped at the start of its second-long
             // interval: it takes no part in the time base.
             _ => return Ok(()),
@@ -350,7 +353,8 @@ impl Intake {
             }
             // An output describes the samples [index, index + span): it is stamped at their
             // middle.
-            if let Some(input) = input_of(id, &f.body, time(s + 0.5 * span)) {
+            if let Some(input) = input_of(id, f.header.sample_index, &f.body, time(s + 0.5 * span))
+            {
                 if input.t() < state.released_until {
                     self.stats.late += 1;
                 } else {
@@ -465,12 +469,13 @@ fn check_hello(
     Ok(())
 }
 
-/// Samples a frame describes (`Doa`, `Peaks`, `Mfcc`; 0 for the others).
+/// Samples a frame describes (`Doa`, `Peaks`, `Mfcc`, `Snippet`; 0 for the others).
 fn frame_span(frame: &Frame) -> u32 {
     match &frame.body {
         Body::Doa(d) => d.span_samples,
         Body::Peaks(p) => p.span_samples,
         Body::Mfcc(m) => m.span_samples,
+        Body::Snippet(x) => (x.samples.len() * usize::from(x.decimation)) as u32,
         _ => 0,
     }
 }
@@ -483,7 +488,7 @@ pub(crate) fn frame_end(frame: &Frame) -> u64 {
 
 /// The tracker input a frame carries, stamped `t`: wire units become radians and linear
 /// amplitudes.
-fn input_of(array_id: u16, body: &Body, t: f64) -> Option<Input> {
+fn input_of(array_id: u16, sample_index: u64, body: &Body, t: f64) -> Option<Input> {
     match body {
         Body::Doa(d) => Some(Input::Bearing(Bearing {
             t,
@@ -506,6 +511,19 @@ fn input_of(array_id: u16, body: &Body, t: f64) -> Option<Input> {
                     amplitude: 10f64.powf(f64::from(q.amplitude_db()) / 20.0),
                 })
                 .collect(),
+        })),
+        Body::Beacon(b) => Some(Input::Beacon(BeaconHeard {
+            t,
+            array_id,
+            arrival_samples: b.arrival_samples(sample_index),
+            quality: f64::from(b.quality) / 255.0,
+        })),
+        Body::Snippet(x) => Some(Input::Snippet(SnippetHeard {
+            t,
+            array_id,
+            sample_index,
+            decimation: u32::from(x.decimation.max(1)),
+            values: (0..x.samples.len()).map(|j| x.value(j)).collect(),
         })),
         _ => None,
     }
@@ -585,15 +603,17 @@ mod tests {
     #[test]
     fn a_frame_without_rotor_signature_carries_no_groups() {
         let p = rotor_peaks();
-        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(p.clone()), 0.0) else { panic!() };
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(p.clone()), 0.0) else {
+            panic!()
+        };
         assert_eq!(s.peaks.len(), 1);
         let none = Peaks { detection: aim_wire::Detection::NoRotor, ..p.clone() };
-        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(none), 0.0) else { panic!() };
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(none), 0.0) else { panic!() };
         assert!(s.peaks.is_empty(), "no rotor signature carries no groups");
         // An older frame (no decision) with a BPF still counts as a rotor.
         let older =
             Peaks { detection: aim_wire::Detection::Unstated, quality: heapless::Vec::new(), ..p };
-        let Some(Input::Spectrum(s)) = input_of(1, &Body::Peaks(older), 0.0) else { panic!() };
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(older), 0.0) else { panic!() };
         assert_eq!(s.peaks.len(), 1);
     }
 

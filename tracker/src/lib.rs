@@ -27,6 +27,7 @@ pub mod exit;
 pub mod filter;
 pub mod id;
 pub mod intake;
+pub mod interarray;
 pub mod iqr;
 pub mod linalg;
 pub mod link;

@@ -41,6 +41,35 @@ pub struct Spectrum {
     pub peaks: Vec<BpfPeak>,
 }
 
+/// One beacon arrival an array heard (a BEACON frame): what the clock model needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BeaconHeard {
+    /// Time of the arrival on the array's time base (the intake's, as every input's), s: the
+    /// coarse time that tells which emission it was.
+    pub t: f64,
+    /// Array id.
+    pub array_id: u16,
+    /// The arrival in the board's own samples (header sample index + fraction).
+    pub arrival_samples: f64,
+    /// Detection quality, 0–1.
+    pub quality: f64,
+}
+
+/// A piece of one array's sound stream (a SNIPPET frame): for inter-array delays.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SnippetHeard {
+    /// Time of the piece's middle on the array's time base (the intake's), s.
+    pub t: f64,
+    /// Array id.
+    pub array_id: u16,
+    /// The board's input-rate sample index of `values[0]`.
+    pub sample_index: u64,
+    /// Input samples per value.
+    pub decimation: u32,
+    /// The sound, fractions of microphone full scale.
+    pub values: Vec<f64>,
+}
+
 /// One input of the tracker, in time order.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Input {
@@ -48,6 +77,10 @@ pub enum Input {
     Bearing(Bearing),
     /// BPF peaks.
     Spectrum(Spectrum),
+    /// A beacon arrival (several arrays: the clock model).
+    Beacon(BeaconHeard),
+    /// A piece of an array's sound (several arrays: inter-array delays).
+    Snippet(SnippetHeard),
 }
 
 impl Input {
@@ -56,6 +89,18 @@ impl Input {
         match self {
             Input::Bearing(b) => b.t,
             Input::Spectrum(s) => s.t,
+            Input::Beacon(b) => b.t,
+            Input::Snippet(x) => x.t,
+        }
+    }
+
+    /// The array the input came from.
+    pub fn array_id(&self) -> u16 {
+        match self {
+            Input::Bearing(b) => b.array_id,
+            Input::Spectrum(s) => s.array_id,
+            Input::Beacon(b) => b.array_id,
+            Input::Snippet(x) => x.array_id,
         }
     }
 }

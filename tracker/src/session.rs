@@ -465,6 +465,7 @@ impl Session {
                 "aligned_to_link": i.aligned_to_link,
             },
             "takeovers": self.tracker.takeovers(),
+            "clocks": clocks_json(self.tracker.clock()),
             "arrays": status["arrays"],
             "unknown_arrays": status["unknown_arrays"],
             "fixes": f.fixes,
@@ -491,6 +492,11 @@ impl Session {
 /// Keeps `r` in the re-tracking history, which is dropped once it would exceed
 /// [`RETRACK_HISTORY`] items.
 fn keep(history: &mut Option<Vec<Released>>, r: &Released) {
+    // Snippets are not kept: 31 a second per array, each 256 samples; a fresh tracker takes
+    // the old one's recent snippets instead (`Tracker::fresh`).
+    if matches!(r, Released::Input(crate::observation::Input::Snippet(_))) {
+        return;
+    }
     if let Some(h) = history {
         if h.len() < RETRACK_HISTORY {
             h.push(r.clone());
@@ -510,11 +516,12 @@ fn feed(
     match released {
         Released::Audio { array_id, from_s, to_s } => tracker.add_audio(array_id, from_s, to_s),
         Released::Input(input) => {
-            let (id, t) = match &input {
-                crate::observation::Input::Bearing(b) => (b.array_id, b.t),
-                crate::observation::Input::Spectrum(s) => (s.array_id, s.t),
-            };
-            if id == tracker.array_id() {
+            let (id, t) = (input.array_id(), input.t());
+            let observation = matches!(
+                input,
+                crate::observation::Input::Bearing(_) | crate::observation::Input::Spectrum(_)
+            );
+            if observation && id == tracker.array_id() {
                 *span = Some(span.map_or((t, t), |(a, _)| (a, t)));
             }
             fixes.extend(tracker.push(input));
@@ -524,6 +531,36 @@ fn feed(
         }
         Released::Until { .. } => {}
     }
+}
+
+/// The clock model's view of every array for the statistics line (`null` without a beacon):
+/// status, the map as the common time of the board's sample 0 (s) and its rate error against
+/// the reference (ppm), the inlier residual rms (µs) and the arrivals used and rejected.
+fn clocks_json(clock: Option<&crate::multi::clock::ClockModel>) -> Value {
+    let Some(clock) = clock else { return Value::Null };
+    let fs = clock.config().sample_rate_hz;
+    let arrays: serde_json::Map<String, Value> = clock
+        .statuses()
+        .into_iter()
+        .map(|a| {
+            let status = match a.status {
+                crate::multi::clock::SyncStatus::Unsynced => "unsynced",
+                crate::multi::clock::SyncStatus::Synced => "synced",
+                crate::multi::clock::SyncStatus::Stale => "stale",
+            };
+            let value = json!({
+                "status": status,
+                "zero_s": a.map.map(|m| (m.time(0.0) * 1e9).round() / 1e9),
+                "drift_ppm": a.map.map(|m| (m.drift_ppm(fs) * 1e3).round() / 1e3),
+                "residual_us": a.residual_rms_us.map(|r| (r * 1e2).round() / 1e2),
+                "inliers": a.inliers,
+                "rejected": a.rejected,
+                "epoch": a.epoch,
+            });
+            (a.array_id.to_string(), value)
+        })
+        .collect();
+    json!({ "reference": clock.reference(), "arrays": arrays })
 }
 
 #[cfg(test)]

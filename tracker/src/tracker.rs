@@ -9,13 +9,19 @@ use std::collections::VecDeque;
 use crate::doa::{DoaConfig, DoaState, DoaWindow};
 use crate::doppler::{DopplerFrame, FrameCentre, DEFAULT_SPEED_OF_SOUND_MPS};
 use crate::dynamics::{sum_bpf_squared, AcousticSpeed, HoverCalibration, SpeedIntegrator};
-use crate::filter::{new_filter, Filter, FilterKind, Step};
+use crate::filter::{new_filter, Filter, FilterKind, RangeDifference, Step};
+use crate::interarray::{
+    joint_search, DelayConfig, PairCorrelation, SnippetStore, DELAYS_OVERSAMPLE, DELAYS_REFINE_S,
+};
 use crate::motion::{
     bpf_groups, DoaCues, MotionClass, MotionClassifier, MotionConfig, ThrustFrame,
 };
-use crate::observation::{Bearing, BpfPeak, Input, Spectrum};
+use crate::multi::clock::{
+    ArrayClock, BeaconArrival, ClockConfig, ClockMap, ClockModel, SyncStatus,
+};
+use crate::observation::{BeaconHeard, Bearing, BpfPeak, Input, Spectrum};
 use crate::profile::Profile;
-use crate::site::Site;
+use crate::site::{Site, SiteSync};
 use crate::wake::{HoverPattern, WakeConfig, WakeSpeed, WakeSplit};
 
 /// Standard deviation given to the integrated horizontal speed while the wake cue of a leg
@@ -295,8 +301,26 @@ pub struct Tracker {
     other_audio: VecDeque<(u16, f64, f64)>,
     /// Position of the last fix, ENU m.
     last_position: Option<[f64; 3]>,
+    /// Instant of the last fix, s (−∞ before the first).
+    last_fix_t: f64,
     /// Input time of the last take-over, s.
     last_takeover_t: f64,
+    /// The arrays' clocks from the site's beacon ([`Tracker::with_sync`]), if it has one.
+    clock: Option<ClockModel>,
+    /// The clock model as [`Tracker::with_sync`] made it, before any beacon (for
+    /// [`Tracker::fresh`]).
+    clock_template: Option<ClockModel>,
+    /// Range differences measured since the last step, for the filter.
+    range_differences: Vec<RangeDifference>,
+    /// The arrays' recent sound (SNIPPET frames), with a beacon clock.
+    snippets: SnippetStore,
+    /// Time of the last inter-array delay measurement, s.
+    last_delays_t: f64,
+    /// Velocity of the last fix, ENU m/s.
+    last_velocity: [f64; 3],
+    /// With [`Tracker::keep_clock_history`]: every array's clock after each beacon arrival
+    /// (the arrival's time, s; the clocks).
+    clock_history: Option<Vec<(f64, Vec<ArrayClock>)>>,
     /// Bearings of the other arrays not yet given to the filter (with
     /// [`TrackerConfig::fuse_arrays`]), in arrival order.
     others: VecDeque<Bearing>,
@@ -311,9 +335,31 @@ fn merge_span(spans: &mut VecDeque<(f64, f64)>, from: f64, to: f64) {
     }
 }
 
+/// Gap between two audio spans of another array that still counts as contiguous, s (a
+/// snippet ends where the next begins, up to rounding).
+const SPAN_JOIN_S: f64 = 1e-3;
+
 /// Most bearings of other arrays held for the filter (about 5 s of eight arrays): a stream
 /// of other arrays' frames while the tracked array is silent cannot grow memory.
 pub const OTHERS_KEPT: usize = 256;
+
+/// Snippets kept per array (31.25 per second): 2 s.
+const SNIPPETS_KEPT: usize = 64;
+/// How often inter-array delays are measured, s.
+pub const DELAYS_EVERY_S: f64 = 0.25;
+/// Correlation window of an inter-array delay, s (BENCHMARKS.md "Snippets for inter-array
+/// delays": 0.25 s beats 0.5 s on a moving drone).
+pub const DELAYS_WINDOW_S: f64 = 0.25;
+/// How far before the output instant the window's centre lies, s: half a window plus the
+/// snippets' own span, so both arrays' windows have arrived.
+pub const DELAYS_LOOKBACK_S: f64 = 0.6;
+/// Half width of the search around the predicted delay, s (under half a BPF period, ≈ 1.5 ms,
+/// so one harmonic peak; 0.41 m of range difference).
+pub const DELAYS_PRIOR_S: f64 = 1.2e-3;
+/// Least correlation quality of a delay the filter takes.
+pub const DELAYS_MIN_QUALITY: f64 = 0.1;
+/// Standard deviation of a range difference, m (≈ 120 µs rms measured, BENCHMARKS.md).
+pub const DELAYS_SIGMA_M: f64 = 0.04;
 
 impl std::fmt::Debug for Tracker {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -401,7 +447,15 @@ impl Tracker {
             takeovers: 0,
             other_audio: VecDeque::new(),
             last_position: None,
+            last_fix_t: f64::NEG_INFINITY,
             last_takeover_t: f64::NEG_INFINITY,
+            clock: None,
+            clock_template: None,
+            clock_history: None,
+            range_differences: Vec::new(),
+            snippets: SnippetStore::new(SNIPPETS_KEPT),
+            last_delays_t: f64::NEG_INFINITY,
+            last_velocity: [0.0; 3],
         })
     }
 
@@ -432,10 +486,22 @@ impl Tracker {
         if array_id != self.array_id() {
             // Another array's, kept for a take-over ([`TrackerConfig::failover_s`]).
             if self.config.fuse_arrays && self.site.arrays.iter().any(|a| a.id == array_id) {
-                if self.other_audio.len() == OTHERS_KEPT {
-                    self.other_audio.pop_front();
+                // Contiguous spans of one array are kept as one (snippets come 31 a second
+                // per array: one entry each would push the older spans out of the bounded
+                // list, and a hand-over asks about the last `handover_heard_s`).
+                let last = self.other_audio.iter_mut().rev().find(|a| a.0 == array_id);
+                match last {
+                    Some(last) if from_s <= last.2 + SPAN_JOIN_S && to_s >= last.1 => {
+                        last.1 = last.1.min(from_s);
+                        last.2 = last.2.max(to_s);
+                    }
+                    _ => {
+                        if self.other_audio.len() == OTHERS_KEPT {
+                            self.other_audio.pop_front();
+                        }
+                        self.other_audio.push_back((array_id, from_s, to_s));
+                    }
                 }
-                self.other_audio.push_back((array_id, from_s, to_s));
                 // (kept `handover_heard_s` longer: a hand-over asks how long it was heard)
                 self.other_audio.retain(|a| a.2 >= keep_from - self.config.handover_heard_s);
             }
@@ -454,10 +520,19 @@ impl Tracker {
     /// heard takes over the track; otherwise other arrays' inputs are dropped.
     pub fn push(&mut self, input: Input) -> Vec<Fix> {
         let t = input.t();
-        let from = match &input {
-            Input::Bearing(b) => b.array_id,
-            Input::Spectrum(s) => s.array_id,
-        };
+        let from = input.array_id();
+        if let Input::Beacon(b) = &input {
+            self.hear_beacon(b);
+            return Vec::new();
+        }
+        if let Input::Snippet(x) = input {
+            if let (true, Some(_), Ok(id)) =
+                (self.config.fuse_arrays, &self.clock, u8::try_from(x.array_id))
+            {
+                self.snippets.push_samples(id, x.sample_index, x.decimation, x.values);
+            }
+            return Vec::new();
+        }
         if from != self.array_id() {
             // Another array's: with fusion, a bearing for the filter, or the take-over (then
             // it is the tracked array's from here on).
@@ -493,6 +568,7 @@ impl Tracker {
         match input {
             Input::Bearing(b) => self.window.push(b),
             Input::Spectrum(s) => self.add_spectrum(&s),
+            Input::Beacon(_) | Input::Snippet(_) => {}
         }
         fixes
     }
@@ -518,6 +594,12 @@ impl Tracker {
         let mut t = Self::new(self.site.clone(), profile, self.kind, self.config.clone())
             .expect("this tracker's site and configuration were accepted");
         t.gate_on_audio = self.gate_on_audio;
+        // The clock model starts afresh too (the replayed history holds the beacons); the
+        // snippets are not replayed (too many), so the recent ones carry over.
+        t.clock_template.clone_from(&self.clock_template);
+        t.clock.clone_from(&self.clock_template);
+        t.clock_history = self.clock_history.as_ref().map(|_| Vec::new());
+        t.snippets = self.snippets.clone();
         t
     }
 
@@ -622,6 +704,141 @@ impl Tracker {
         self.last_takeover_t = t;
         self.takeovers = self.takeovers.wrapping_add(1);
         true
+    }
+
+    /// The tracker with the clock model of the site's first beacon (`sync`: the site file's
+    /// `[[beacon]]` tables), if it names one: every array's BEACON frames then solve its
+    /// clock ([`crate::multi::clock`]).
+    pub fn with_sync(mut self, sync: &SiteSync) -> Self {
+        self.clock = ClockModel::from_site(&self.site, sync, ClockConfig::default());
+        self.clock_template.clone_from(&self.clock);
+        self
+    }
+
+    /// Inter-array delays around `t` (s, the tracked array's time base) for the filter:
+    /// every [`DELAYS_EVERY_S`], with a beacon clock that has synced the arrays, the GCC-PHAT
+    /// of each synced array's snippets against those of the array nearest the last fix, over
+    /// a window ending [`DELAYS_LOOKBACK_S`] − half a window before `t` (its snippets have
+    /// arrived by then), searched within ±[`DELAYS_PRIOR_S`] of the delay the last fix
+    /// predicts. Each becomes a range difference c·T_pq between the arrays' centres (the
+    /// snippets are the mean of the microphones). The tracked array's time is taken as its
+    /// sample count over the nominal rate.
+    fn measure_range_differences(&mut self, t: f64) {
+        if t - self.last_delays_t < DELAYS_EVERY_S {
+            return;
+        }
+        let (Some(clock), Some(x), Ok(tracked)) =
+            (&self.clock, self.last_position, u8::try_from(self.array_id()))
+        else {
+            return;
+        };
+        let synced = |id: u8| {
+            clock.status(id).filter(|s| s.status == SyncStatus::Synced).and_then(|s| s.map)
+        };
+        let Some(tracked_map) = synced(tracked) else { return };
+        self.last_delays_t = t;
+        let fs = f64::from(self.site.sample_rate_hz.unwrap_or(48_000));
+        let c = DEFAULT_SPEED_OF_SOUND_MPS;
+        let t_then = t - DELAYS_LOOKBACK_S;
+        let centre = tracked_map.time(t_then * fs);
+        // Back from the last fix's instant (not the instant being output: `last_output` is
+        // already this one's).
+        let lag = if self.last_fix_t.is_finite() { self.last_fix_t - t_then } else { 0.0 };
+        let then: [f64; 3] = std::array::from_fn(|i| x[i] - self.last_velocity[i] * lag);
+        let arrays: Vec<(u8, [f64; 3], ClockMap)> = self
+            .site
+            .arrays
+            .iter()
+            .filter_map(|a| {
+                let id = u8::try_from(a.id).ok()?;
+                Some((id, a.position, synced(id)?))
+            })
+            .collect();
+        let distance = |a: [f64; 3]| (0..3).map(|i| (then[i] - a[i]).powi(2)).sum::<f64>().sqrt();
+        let Some(&(q, aq, map_q)) =
+            arrays.iter().min_by(|a, b| distance(a.1).total_cmp(&distance(b.1)))
+        else {
+            return;
+        };
+        let config = DelayConfig { window_s: DELAYS_WINDOW_S, ..DelayConfig::default() };
+        // Each other array's correlation against q, its windows placed by the track.
+        let mut pairs: Vec<([f64; 3], PairCorrelation)> = arrays
+            .iter()
+            .filter(|a| a.0 != q)
+            .filter_map(|&(p, ap, map_p)| {
+                let predicted = (distance(ap) - distance(aq)) / c;
+                let mut corr = self.snippets.correlation(
+                    p,
+                    q,
+                    &|n: f64| map_p.time(n),
+                    &|n: f64| map_q.time(n),
+                    centre,
+                    predicted,
+                    &config,
+                )?;
+                corr.tabulate(DELAYS_OVERSAMPLE);
+                Some((ap, corr))
+            })
+            .collect();
+        if pairs.is_empty() {
+            return;
+        }
+        // The drone's comb repeats every 1/BPF (≈ 1 m of range difference), so one pair alone
+        // cannot tell its peak from the next; the point near the track that every pair's
+        // correlation supports at once can.
+        let at = if pairs.len() >= 2 { joint_search(then, &pairs, aq, c) } else { then };
+        let rd_at = |a: [f64; 3]| {
+            let d = |b: [f64; 3]| (0..3).map(|i| (at[i] - b[i]).powi(2)).sum::<f64>().sqrt();
+            (d(a) - d(aq)) / c
+        };
+        let half_width = if pairs.len() >= 2 { DELAYS_REFINE_S } else { DELAYS_PRIOR_S };
+        for (ap, corr) in pairs.drain(..) {
+            let Some(d) = corr.refine(rd_at(ap), half_width) else { continue };
+            if d.quality < DELAYS_MIN_QUALITY {
+                continue;
+            }
+            self.range_differences.push(RangeDifference {
+                t: t_then + (d.time_s - centre),
+                p: ap,
+                q: aq,
+                range_difference_m: c * d.delay_s,
+                sigma_m: DELAYS_SIGMA_M,
+                span_m: c * DELAYS_PRIOR_S,
+            });
+        }
+    }
+
+    /// One beacon arrival to the clock model (none without a beacon in the site); an arrival
+    /// the model cannot use is counted there.
+    fn hear_beacon(&mut self, b: &BeaconHeard) {
+        let Some(clock) = self.clock.as_mut() else { return };
+        let Ok(array_id) = u8::try_from(b.array_id) else { return };
+        let arrival = BeaconArrival {
+            array_id,
+            arrival_samples: b.arrival_samples,
+            quality: b.quality as f32,
+        };
+        if let (Ok(()), Some(history)) = (clock.push(arrival, b.t), self.clock_history.as_mut()) {
+            history.push((b.t, clock.statuses()));
+        }
+    }
+
+    /// The clock model, if the site has a beacon.
+    pub fn clock(&self) -> Option<&ClockModel> {
+        self.clock.as_ref()
+    }
+
+    /// Keeps every array's clock after each beacon arrival from now on (for an evaluation;
+    /// it grows with the flight).
+    pub fn keep_clock_history(mut self) -> Self {
+        self.clock_history = Some(Vec::new());
+        self
+    }
+
+    /// With [`Tracker::keep_clock_history`]: every array's clock after each beacon arrival the
+    /// model used (the arrival's time on its array's time base, s; the clocks); else empty.
+    pub fn clock_history(&self) -> &[(f64, Vec<ArrayClock>)] {
+        self.clock_history.as_deref().unwrap_or(&[])
     }
 
     /// How many times another array took over the track ([`TrackerConfig::failover_s`]).
@@ -898,6 +1115,7 @@ impl Tracker {
         });
         // Other arrays' bearings up to this instant, each once; those older than `stale_s`
         // are dropped unused.
+        self.measure_range_differences(t);
         let mut others = Vec::new();
         let stale = self.config.stale_s;
         self.others.retain(|b| {
@@ -915,6 +1133,7 @@ impl Tracker {
             t,
             dt,
             others,
+            range_differences: std::mem::take(&mut self.range_differences),
             array: &self.site.arrays[self.array_index],
             doa,
             los,
@@ -928,6 +1147,8 @@ impl Tracker {
         };
         let est = self.filter.step(&step)?;
         self.last_position = Some(est.position);
+        self.last_fix_t = t;
+        self.last_velocity = est.velocity;
         let pc = &est.position_covariance;
         Some(Fix {
             t,

@@ -66,7 +66,7 @@ pub struct LinkStats {
     pub bytes: u64,
     /// Frames decoded.
     pub frames: u64,
-    /// Frames decoded, per kind, indexed by the kind byte ([`Kind::ALL`] order).
+    /// Frames decoded, per kind, in [`Kind::ALL`] order.
     pub frames_by_kind: [u64; Kind::ALL.len()],
     /// Frames whose CRC did not match (line errors).
     pub crc_errors: u64,
@@ -107,8 +107,9 @@ impl LinkStats {
         match result {
             Ok(frame) => {
                 self.frames += 1;
-                let k = usize::from(frame.body.kind().byte());
-                if let Some(n) = self.frames_by_kind.get_mut(k) {
+                let kind = frame.body.kind();
+                let k = Kind::ALL.iter().position(|&x| x == kind);
+                if let Some(n) = k.and_then(|k| self.frames_by_kind.get_mut(k)) {
                     *n += 1;
                 }
             }
@@ -159,6 +160,8 @@ fn decode_body(kind: Kind, payload: &[u8]) -> Result<Body, DecodeError> {
         Kind::Peaks => Body::Peaks(crate::Peaks::from_payload(payload).map_err(err)?),
         Kind::Health => Body::Health(crate::Health::from_payload(payload).map_err(err)?),
         Kind::Mfcc => Body::Mfcc(postcard::take_from_bytes(payload).map_err(err)?.0),
+        Kind::Beacon => Body::Beacon(postcard::take_from_bytes(payload).map_err(err)?.0),
+        Kind::Snippet => Body::Snippet(postcard::take_from_bytes(payload).map_err(err)?.0),
     })
 }
 

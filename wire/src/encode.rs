@@ -75,6 +75,8 @@ fn encode_raw(frame: &Frame, raw: &mut [u8; MAX_RAW_LEN]) -> Result<usize, Encod
         Body::Doa(p) => postcard::to_slice(p, payload).map(|s| s.len()),
         Body::Peaks(p) => postcard::to_slice(p, payload).map(|s| s.len()),
         Body::Mfcc(p) => postcard::to_slice(p, payload).map(|s| s.len()),
+        Body::Beacon(p) => postcard::to_slice(p, payload).map(|s| s.len()),
+        Body::Snippet(p) => postcard::to_slice(p, payload).map(|s| s.len()),
         Body::Health(p) => postcard::to_slice(p, payload).map(|s| s.len()).and_then(|n| {
             // The microphone levels are appended only when there are any.
             match p.mic_report() {

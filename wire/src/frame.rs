@@ -14,6 +14,8 @@ pub const MFCC_MEL_BANDS: usize = 24;
 pub const MFCC_COEFFS: usize = 13;
 /// BPF comb features in an `Mfcc` frame (aim-dsp `features::HARMONIC_FEATURES`).
 pub const MFCC_HARMONIC: usize = 9;
+/// Samples in a `Snippet` frame (aim-dsp `snippet::SNIPPET_LEN`).
+pub const SNIPPET_SAMPLES: usize = 256;
 /// Most bytes of the panic message a `Hello` carries ([`Hello::panic_message`]).
 pub const MAX_PANIC_MESSAGE: usize = 48;
 /// Bytes of a chip unique ID ([`Hello::unique_id`]: the STM32's 96-bit UID).
@@ -38,6 +40,10 @@ pub enum Kind {
     Health = 3,
     /// [`Mfcc`]: drone-identification features (log-mel, MFCC, BPF comb) of one analysis window.
     Mfcc = 4,
+    /// [`Beacon`]: one arrival of the synchronisation beacon (aim-dsp `beacon`).
+    Beacon = 5,
+    /// [`Snippet`]: 32 ms of the array's mean signal at 8 kHz, for inter-array delays.
+    Snippet = 6,
 }
 
 /// Kind bytes reserved for planned frames. Never reuse them for anything else; an old host
@@ -45,15 +51,24 @@ pub enum Kind {
 pub mod reserved {
     /// MFCC features (`ALGORITHMS.md` §10): now [`super::Kind::Mfcc`], kept for the record.
     pub const MFCC: u8 = 4;
-    /// Ultrasonic beacon detections in 16–20 kHz.
+    /// Beacon arrivals in 16–20 kHz: now [`super::Kind::Beacon`], kept for the record.
     pub const BEACON: u8 = 5;
-    /// Band-limited audio snippet for inter-array delays (`ALGORITHMS.md` §10).
+    /// Band-limited audio snippet for inter-array delays (`ALGORITHMS.md` §9): now
+    /// [`super::Kind::Snippet`], kept for the record.
     pub const SNIPPET: u8 = 6;
 }
 
 impl Kind {
     /// Every kind this version knows, in discriminant order.
-    pub const ALL: [Kind; 5] = [Kind::Hello, Kind::Doa, Kind::Peaks, Kind::Health, Kind::Mfcc];
+    pub const ALL: [Kind; 7] = [
+        Kind::Hello,
+        Kind::Doa,
+        Kind::Peaks,
+        Kind::Health,
+        Kind::Mfcc,
+        Kind::Beacon,
+        Kind::Snippet,
+    ];
 
     /// The kind of a kind byte, or `None` if this version does not know it.
     pub const fn from_byte(byte: u8) -> Option<Kind> {
@@ -63,6 +78,8 @@ impl Kind {
             2 => Some(Kind::Peaks),
             3 => Some(Kind::Health),
             4 => Some(Kind::Mfcc),
+            5 => Some(Kind::Beacon),
+            6 => Some(Kind::Snippet),
             _ => None,
         }
     }
@@ -80,6 +97,8 @@ impl Kind {
             Kind::Peaks => "peaks",
             Kind::Health => "health",
             Kind::Mfcc => "mfcc",
+            Kind::Beacon => "beacon",
+            Kind::Snippet => "snippet",
         }
     }
 
@@ -114,6 +133,10 @@ impl Kind {
             Kind::Health => 5 + 5 + 3 + 1 + 5 * 3 + 1 + 9 * 5 + 1 + MAX_MICS * 2 * 3,
             // span u32 5 + (24 log-mel + 13 MFCC + 9 harmonic) x i16 3
             Kind::Mfcc => 5 + (MFCC_MEL_BANDS + MFCC_COEFFS + MFCC_HARMONIC) * 3,
+            // fraction u16 3 + quality 1 + level i16 3
+            Kind::Beacon => 3 + 1 + 3,
+            // decimation 1 + exponent 1 + length varint 2 + samples 1 each
+            Kind::Snippet => 1 + 1 + 2 + SNIPPET_SAMPLES,
         }
     }
 
@@ -163,6 +186,10 @@ pub enum Body {
     Health(Health),
     /// See [`Mfcc`].
     Mfcc(Mfcc),
+    /// See [`Beacon`].
+    Beacon(Beacon),
+    /// See [`Snippet`].
+    Snippet(Snippet),
 }
 
 impl Body {
@@ -174,6 +201,8 @@ impl Body {
             Body::Peaks(_) => Kind::Peaks,
             Body::Health(_) => Kind::Health,
             Body::Mfcc(_) => Kind::Mfcc,
+            Body::Beacon(_) => Kind::Beacon,
+            Body::Snippet(_) => Kind::Snippet,
         }
     }
 }
@@ -893,5 +922,87 @@ impl Mfcc {
             *o = f32::from(q) * if i == 0 { 0.001 } else { 0.01 };
         }
         v
+    }
+}
+
+/// One arrival of the synchronisation beacon (aim-dsp `beacon`, sequence `aim-beacon-v1`), at
+/// most one per emission (default one per second). The header's sample index is the integer
+/// part of the arrival: the input-clock sample (48 kHz) at which the emission's first sample
+/// reached the array's microphone 0 (slot 0; its position is in [`Hello`] and the site file);
+/// the arrival is `sample_index + fraction / 65536` samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Beacon {
+    /// Sub-sample part of the arrival, units of 1/65536 sample (resolution 0.3 ns at 48 kHz).
+    pub fraction: u16,
+    /// Normalised correlation of the received window with the beacon template, units of 1/255
+    /// (0–1; the chip reports only ≥ 0.4).
+    pub quality: u8,
+    /// Received peak amplitude of the beacon at microphone 0, units of 0.01 dB re full scale.
+    pub level_cdb: i16,
+}
+
+impl Beacon {
+    /// Quantises a fraction of a sample in [0, 1), a quality in [0, 1] and a level in dBFS.
+    pub fn new(fraction: f32, quality: f32, level_db: f32) -> Self {
+        Beacon {
+            // Rounding may reach 65536: saturate just below 1.
+            fraction: fixed::to_u32(fraction, 65_536.0).min(u32::from(u16::MAX)) as u16,
+            quality: fixed::to_u8(quality, 255.0),
+            level_cdb: fixed::to_i16(level_db, 100.0),
+        }
+    }
+
+    /// The sub-sample part of the arrival, samples, in [0, 1).
+    pub fn fraction_samples(&self) -> f64 {
+        f64::from(self.fraction) / 65_536.0
+    }
+
+    /// The arrival in samples of the board's input clock, given the header's sample index.
+    pub fn arrival_samples(&self, sample_index: u64) -> f64 {
+        sample_index as f64 + self.fraction_samples()
+    }
+
+    /// Quality in [0, 1].
+    pub fn quality_f32(&self) -> f32 {
+        f32::from(self.quality) / 255.0
+    }
+
+    /// Received level, dB re full scale.
+    pub fn level_db(&self) -> f32 {
+        f32::from(self.level_cdb) / 100.0
+    }
+}
+
+/// 32 ms of one array's sound for inter-array delays (`ALGORITHMS.md` §9): the mean of all
+/// microphones, low-passed at 3.5 kHz and decimated to 8 kHz on the chip (aim-dsp
+/// `snippet`), as a contiguous stream (31.25 frames per second; a gap in the capture drops the
+/// frames that would span it). The header's sample index is the input-rate sample of
+/// `samples[0]`; sample `j` was taken at `sample_index + j · decimation`, and its content lags
+/// that by the chip's filters (45 input samples at 48 kHz, the same on every array).
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Snippet {
+    /// Input samples per snippet sample (6 at 48 kHz, 2 at 16 kHz: 8 kHz snippets).
+    pub decimation: u8,
+    /// Block exponent: sample `j` is `samples[j] · 2^exponent` of microphone full scale.
+    pub exponent: i8,
+    /// Mantissas, −127..=127, at most [`SNIPPET_SAMPLES`] (always that many from the chip).
+    pub samples: heapless::Vec<i8, SNIPPET_SAMPLES>,
+}
+
+impl Snippet {
+    /// `2^exponent`: the value of one mantissa step, fraction of full scale.
+    pub fn step(&self) -> f64 {
+        // Every i8 exponent is a normal f64: build the power of two from its bits.
+        f64::from_bits(((1023 + i64::from(self.exponent)) as u64) << 52)
+    }
+
+    /// Sample `j` as a fraction of microphone full scale (0 past the end).
+    pub fn value(&self, j: usize) -> f64 {
+        f64::from(self.samples.get(j).copied().unwrap_or(0)) * self.step()
+    }
+
+    /// Sample rate of the snippet for the array's input rate (`Hello::sample_rate_hz`), Hz.
+    pub fn rate_hz(&self, input_rate_hz: u32) -> f64 {
+        f64::from(input_rate_hz) / f64::from(self.decimation.max(1))
     }
 }

@@ -14,14 +14,15 @@
 //! ```
 
 use crate::frame::{
-    Body, Detection, Doa, Health, Hello, Mfcc, MicLevels, Peak, Peaks, MAX_MICS, MAX_PEAKS,
-    MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS,
+    Beacon, Body, Detection, Doa, Health, Hello, Mfcc, MicLevels, Peak, Peaks, Snippet, MAX_MICS,
+    MAX_PEAKS, MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS, SNIPPET_SAMPLES,
 };
 
 // The frame's layout follows the DSP's feature counts.
 const _: () = assert!(MFCC_MEL_BANDS == aim_dsp::idframe::MEL_BANDS);
 const _: () = assert!(MFCC_COEFFS == aim_dsp::idframe::MFCC_COUNT);
 const _: () = assert!(MFCC_HARMONIC == aim_dsp::features::HARMONIC_FEATURES);
+const _: () = assert!(SNIPPET_SAMPLES == aim_dsp::snippet::SNIPPET_LEN);
 use crate::{fixed, EncodeError, Encoder};
 
 /// What the firmware knows and the DSP does not; goes into [`Health`] frames. All zero in
@@ -161,6 +162,19 @@ pub fn body(output: &aim_dsp::Output, firmware: &FirmwareCounters) -> (u64, Body
         aim_dsp::Output::Peaks(p) => (p.sample_index, Body::Peaks(peaks(p))),
         aim_dsp::Output::Health(h) => (h.sample_index, Body::Health(health(h, firmware))),
         aim_dsp::Output::Mfcc(f) => (f.sample_index, Body::Mfcc(mfcc(f))),
+        aim_dsp::Output::Beacon(b) => {
+            (b.sample_index, Body::Beacon(Beacon::new(b.fraction, b.quality, b.level_db)))
+        }
+        aim_dsp::Output::Snippet(x) => (x.sample_index, Body::Snippet(snippet(x))),
+    }
+}
+
+/// A snippet as it is: the chip's block exponent and mantissas.
+pub fn snippet(x: &aim_dsp::Snippet) -> Snippet {
+    Snippet {
+        decimation: x.decimation,
+        exponent: x.exponent,
+        samples: heapless::Vec::from_slice(&x.samples).unwrap_or_default(),
     }
 }
 
@@ -245,6 +259,42 @@ mod tests {
         assert_eq!(m.harmonic, [392, 1713, 0, 0, 0, 0, 0, 0, -3333]);
         assert!((m.harmonic_values()[0] - 0.392).abs() < 1e-6);
         assert!((m.mfcc_db(0) + 391.3).abs() < 1e-3);
+    }
+
+    #[test]
+    fn beacon_fields_map_with_their_units() {
+        let b = aim_dsp::beacon::Beacon {
+            sample_index: 57_912,
+            fraction: 0.602_1,
+            quality: 0.93,
+            level_db: -71.254,
+        };
+        let (index, body) = body(&aim_dsp::Output::Beacon(b), &FirmwareCounters::default());
+        let Body::Beacon(w) = body else { panic!("{body:?}") };
+        assert_eq!(index, 57_912);
+        assert_eq!((w.fraction, w.quality, w.level_cdb), (39_459, 237, -7125));
+        assert!((w.arrival_samples(index) - 57_912.602_1).abs() < 1.0 / 65_536.0);
+        // A fraction that rounds up to a whole sample saturates below it.
+        assert_eq!(Beacon::new(0.999_999, 1.0, 0.0).fraction, u16::MAX);
+    }
+
+    #[test]
+    fn a_snippet_keeps_every_bit_and_its_value() {
+        let mut x = aim_dsp::Snippet {
+            sample_index: 1536,
+            decimation: 6,
+            exponent: -9,
+            ..Default::default()
+        };
+        x.samples[0] = -127;
+        x.samples[255] = 100;
+        let (index, body) = body(&aim_dsp::Output::Snippet(x), &FirmwareCounters::default());
+        let Body::Snippet(w) = body else { panic!("{body:?}") };
+        assert_eq!((index, w.decimation, w.exponent, w.samples.len()), (1536, 6, -9, 256));
+        assert_eq!((w.samples[0], w.samples[255]), (-127, 100));
+        assert_eq!(w.value(255), f64::from(x.value(255)));
+        assert_eq!(w.value(0), -127.0 / 512.0);
+        assert_eq!(w.rate_hz(48_000), 8000.0);
     }
 
     #[test]

@@ -43,6 +43,10 @@
 //! | `Mfcc::log_mel_cdb`, `Mfcc::harmonic[1..]` | i16 | 0.01 dB | ±327.67 dB |
 //! | `Mfcc::mfcc_ddb` | i16 | 0.1 dB | ±3276.7 dB |
 //! | `Mfcc::harmonic[0]` (`log2(f0 / 250 Hz)`) | i16 | 0.001 octave | ±32.767 octaves |
+//! | `Beacon::fraction` | u16 | 1/65536 sample | 0–1 sample |
+//! | `Beacon::quality` | u8 | 1/255 | 0–1 |
+//! | `Beacon::level_cdb` | i16 | 0.01 dB | ±327.67 dBFS |
+//! | `Snippet::samples` | i8 | `2^exponent` of full scale | −127..=127 |
 //! | `span_samples`, `sample_rate_hz`, counters | u32 | 1 | exact |
 //! | `Hello::reset_cause` | u8 | [`ResetCause`] code | 0–9 known |
 //! | `Hello::unique_id` | 12 × u8 | chip unique ID bytes | all zero: not reported |
@@ -108,9 +112,10 @@ pub use crc32::crc32;
 pub use deframe::{decode, DecodeError, Deframer, Feed, LinkStats, DEFAULT_CAPACITY};
 pub use encode::{encode, EncodeError, Encoder};
 pub use frame::{
-    derived_array_id, reserved, stm32h7_revision_name, Body, ClockSource, Detection, Doa, Frame,
-    Header, Health, Hello, Kind, Mfcc, MicLevels, Peak, Peaks, ResetCause, MAX_MICS,
-    MAX_PANIC_MESSAGE, MAX_PEAKS, MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS, UNIQUE_ID_LEN,
+    derived_array_id, reserved, stm32h7_revision_name, Beacon, Body, ClockSource, Detection, Doa,
+    Frame, Header, Health, Hello, Kind, Mfcc, MicLevels, Peak, Peaks, ResetCause, Snippet,
+    MAX_MICS, MAX_PANIC_MESSAGE, MAX_PEAKS, MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS,
+    SNIPPET_SAMPLES, UNIQUE_ID_LEN,
 };
 
 /// First byte of every raw frame.

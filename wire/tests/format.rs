@@ -19,14 +19,16 @@ fn discriminants_are_pinned() {
     assert_eq!(Kind::Health as u8, 3);
     assert_eq!(Kind::Mfcc as u8, 4);
     assert_eq!(reserved::MFCC, Kind::Mfcc as u8);
-    assert_eq!(reserved::BEACON, 5);
+    assert_eq!(Kind::Beacon as u8, 5);
+    assert_eq!(reserved::BEACON, Kind::Beacon as u8);
     assert_eq!(reserved::SNIPPET, 6);
+    assert_eq!(Kind::Snippet as u8, reserved::SNIPPET);
     assert_eq!(aim_wire::MAGIC, 0xA1);
     assert_eq!(PROTOCOL_VERSION, 1);
     for kind in Kind::ALL {
         assert_eq!(Kind::from_byte(kind.byte()), Some(kind));
     }
-    for byte in [reserved::BEACON, reserved::SNIPPET, 7, 255] {
+    for byte in [7, 255] {
         assert_eq!(Kind::from_byte(byte), None);
     }
     // The kind byte sits at offset 2 of every raw frame.
@@ -45,6 +47,8 @@ fn max_encoded_size_per_kind() {
         (Kind::Peaks, 73, 76),
         (Kind::Health, 144, 147),
         (Kind::Mfcc, 163, 166),
+        (Kind::Beacon, 27, 30),
+        (Kind::Snippet, 280, 284),
     ];
     for (kind, raw_len, wire_len) in expected {
         let frame = worst_case(kind);
@@ -53,8 +57,8 @@ fn max_encoded_size_per_kind() {
         assert_eq!(kind.max_raw_len(), raw_len, "{kind:?} declared raw");
         assert_eq!(kind.max_encoded_len(), wire_len, "{kind:?} declared wire");
     }
-    assert_eq!(MAX_RAW_LEN, 163);
-    assert_eq!(MAX_ENCODED_LEN, 166);
+    assert_eq!(MAX_RAW_LEN, 280);
+    assert_eq!(MAX_ENCODED_LEN, 284);
 }
 
 const GOLDEN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden");
@@ -254,10 +258,11 @@ fn deframe_all(stream: &[u8]) -> (Vec<Result<Frame, DecodeError>>, LinkStats) {
 
 #[test]
 fn unknown_kind_is_skipped_and_counted() {
-    // A newer firmware sends a Snippet (kind 6) between two known frames.
+    // A newer firmware sends a frame of a kind this version does not know (7) between two
+    // known frames.
     let frames = sample_frames();
     let mut snippet = strip_crc(&raw(&frames[1])).to_vec();
-    snippet[2] = reserved::SNIPPET;
+    snippet[2] = 7;
     snippet[4] = 2; // its own sequence number, between the two neighbours
     snippet.extend_from_slice(&[0xAB; 40]);
     let mut before = frames[0].clone();
@@ -266,7 +271,7 @@ fn unknown_kind_is_skipped_and_counted() {
     after.header.seq = 3;
     let stream = [wire(&before), reframe(&snippet), wire(&after)].concat();
     let (out, stats) = deframe_all(&stream);
-    assert_eq!(out, [Ok(before), Err(DecodeError::UnknownKind(reserved::SNIPPET)), Ok(after)]);
+    assert_eq!(out, [Ok(before), Err(DecodeError::UnknownKind(7)), Ok(after)]);
     assert_eq!(stats.unknown_kinds, 1);
     assert_eq!(stats.crc_errors, 0);
     // Its sequence number counted: no gap reported.
@@ -463,6 +468,8 @@ fn bodies_report_their_kind() {
                 | (Body::Peaks(_), Kind::Peaks)
                 | (Body::Health(_), Kind::Health)
                 | (Body::Mfcc(_), Kind::Mfcc)
+                | (Body::Beacon(_), Kind::Beacon)
+                | (Body::Snippet(_), Kind::Snippet)
         );
         assert!(matches, "{kind:?}");
     }

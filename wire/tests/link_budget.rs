@@ -19,7 +19,7 @@ const HELLO_PERIOD_S: f64 = 5.0;
 const BUDGET: f64 = 0.5;
 
 /// Frames per second of each kind for a pipeline configuration.
-fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 5] {
+fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 7] {
     let block_s = config.block_len as f64 / f64::from(config.sample_rate_hz);
     let peaks_hop_s =
         aim_dsp::bpf::ANALYSIS_HOP as f64 / f64::from(aim_dsp::bpf::DECIMATED_RATE_HZ);
@@ -32,6 +32,17 @@ fn rates(config: &aim_dsp::Config) -> [(Kind, f64); 5] {
             let every = f64::from(config.mfcc_interval);
             if every > 0.0 {
                 1.0 / (peaks_hop_s * every)
+            } else {
+                0.0
+            }
+        }),
+        // One emission per second (the site's default period).
+        (Kind::Beacon, if config.sample_rate_hz == 48_000 { 1.0 } else { 0.0 }),
+        (Kind::Snippet, {
+            let snippet_s =
+                aim_dsp::snippet::SNIPPET_LEN as f64 / f64::from(aim_dsp::bpf::DECIMATED_RATE_HZ);
+            if config.snippets {
+                1.0 / snippet_s
             } else {
                 0.0
             }
@@ -80,7 +91,8 @@ fn eight_mics_at_default_rates_use_at_most_half_the_link() {
     let utilisation = load(&config, "aim-dsp defaults, 48 kHz, 8 mics, worst-case sizes");
     assert!(utilisation <= BUDGET, "{:.1} % of the link", 100.0 * utilisation);
     // Physical sanity of the rates read from aim-dsp: a DoA per few blocks, ~1 Health/s.
-    let [_, (_, doa), (_, peaks), (_, health), (_, mfcc)] = rates(&config);
+    let [_, (_, doa), (_, peaks), (_, health), (_, mfcc), _, (_, snippets)] = rates(&config);
+    assert_eq!(snippets, 31.25, "a contiguous 8 kHz stream of 256-sample snippets");
     assert!((1.0..=47.0).contains(&doa), "DoA rate {doa}");
     assert!(mfcc > 0.0 && mfcc <= peaks, "Mfcc rate {mfcc}: one per analysis at most");
     assert!((0.5..=24.0).contains(&peaks), "Peaks rate {peaks}");
@@ -96,4 +108,13 @@ fn even_one_doa_per_block_fits() {
     config.validate().expect("aim-dsp accepts this configuration");
     let utilisation = load(&config, "one DoA and one Health per 1024-sample block");
     assert!(utilisation <= BUDGET, "{:.1} % of the link", 100.0 * utilisation);
+}
+
+#[test]
+fn without_snippets_the_link_is_as_before() {
+    // A single-array site (`Config::snippets` = false): today's load, for comparison.
+    let mut config = aim_dsp::Config::new(aim_dsp::Geometry::circle_8mic(), 48_000);
+    config.snippets = false;
+    let utilisation = load(&config, "aim-dsp defaults without snippets");
+    assert!(utilisation <= 0.02, "{:.1} % of the link", 100.0 * utilisation);
 }

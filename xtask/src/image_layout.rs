@@ -15,17 +15,22 @@
 //! - `.data`, `.bss` and the stack in DTCM (the fastest RAM, not reachable by DMA1/DMA2);
 //! - every DMA buffer (`.axisram`, see `firmware/src/dma_buffer.rs`) in D1 (AXI) or D2 SRAM,
 //!   the RAMs DMA1/DMA2 reach;
+//! - the zero-filled-by-code sections (`.axisram`, and `.dsp_state`, the DSP state too large
+//!   for DTCM) `NOLOAD` (no file contents: nothing stored in flash, nothing loaded) in an
+//!   on-chip RAM, and outside `[__sbss, __ebss)` and `[__sdata, __edata)` (the reset handler
+//!   neither zeroes nor copies them: `axisram_buffer!` / `dsp_state!` zero each static once);
 //! - a stack guard: the firmware's MPU guard region (`firmware/src/fault.rs`: the image holds
 //!   the marker symbol `AIM_STACK_GUARD_BYTES`, and the guard `[align_up(_stack_end, 32), +32)`
 //!   lies in DTCM above every static and below the initial stack pointer), so that an overflow
 //!   faults instead of silently overwriting the statics;
-//! - every allocated section inside one region, every loaded byte stored in flash.
+//! - every allocated section inside one region, no two overlapping, every loaded byte stored in
+//!   flash.
 use std::ops::Range;
 
 use anyhow::{bail, Context, Result};
 use object::{
     elf, read::elf::ProgramHeader as _, Endianness, Object, ObjectSection, ObjectSymbol,
-    SectionFlags,
+    SectionFlags, SectionKind,
 };
 
 /// One region of the STM32H743's memory map (RM0433 §2.3.2, "Memory map").
@@ -71,6 +76,34 @@ fn region_of(range: &Range<u64>) -> Option<Region> {
     STM32H743.iter().copied().find(|r| r.contains(range))
 }
 
+/// The on-chip RAMs (where a section zero-filled at run time may live).
+const ON_CHIP_RAM: [&str; 5] = ["DTCM", "AXISRAM", "SRAM1-3", "SRAM4", "BKPSRAM"];
+
+/// Output sections that the firmware zero-fills at run time (not the reset handler): DMA
+/// buffers and the DSP state.
+const ZERO_FILLED_BY_CODE: [&str; 2] = [".axisram", ".dsp_state"];
+
+/// Whether section `name` is `base` or one of its subsections (`base.*`).
+fn is_section(name: &str, base: &str) -> bool {
+    name.strip_prefix(base).is_some_and(|rest| rest.is_empty() || rest.starts_with('.'))
+}
+
+/// Whether two address ranges share a byte.
+fn overlap(a: &Range<u64>, b: &Range<u64>) -> bool {
+    a.start < b.end && b.start < a.end
+}
+
+/// An allocated section of an image.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Section {
+    /// Name, e.g. `.bss`.
+    pub name: String,
+    /// Address range (virtual, where the code sees it).
+    pub range: Range<u64>,
+    /// `SHT_NOBITS`: no contents in the file (`.bss`, `NOLOAD` sections).
+    pub nobits: bool,
+}
+
 /// The result of the layout check: what was found, and each rule broken.
 #[derive(Debug, Default)]
 pub struct Report {
@@ -105,8 +138,8 @@ pub struct Image {
     pub stack_end: u64,
     /// The image holds `AIM_STACK_GUARD_BYTES`, the marker of the firmware's MPU stack guard.
     pub stack_guard: bool,
-    /// Allocated sections with a size: name and address range.
-    pub sections: Vec<(String, Range<u64>)>,
+    /// Allocated sections with a size.
+    pub sections: Vec<Section>,
     /// `PT_LOAD` segments with file contents: physical (load) address range.
     pub loads: Vec<Range<u64>>,
 }
@@ -139,7 +172,9 @@ pub fn read(elf_bytes: &[u8]) -> Result<Image> {
             SectionFlags::Elf { sh_flags } if sh_flags & u64::from(elf::SHF_ALLOC) != 0);
         if allocated && section.size() > 0 {
             let name = section.name().unwrap_or("?").to_string();
-            sections.push((name, section.address()..section.address() + section.size()));
+            let range = section.address()..section.address() + section.size();
+            let nobits = matches!(section.kind(), SectionKind::UninitializedData);
+            sections.push(Section { name, range, nobits });
         }
     }
     let object::File::Elf32(elf32) = &file else {
@@ -270,14 +305,14 @@ pub fn rules(image: &Image) -> Report {
     );
 
     // Every allocated section inside one region; DMA buffers in D1/D2 SRAM.
-    for (name, range) in &image.sections {
+    for Section { name, range, .. } in &image.sections {
         let home = region_of(range);
         rule(
             home.is_some(),
             format!("section {name} {} in {}", hex(range), home.map_or("?", |r| r.name)),
             format!("section {name} {} is not inside one memory region", hex(range)),
         );
-        if name.starts_with(".axisram") {
+        if is_section(name, ".axisram") {
             let dma_ok = home.is_some_and(|r| r.name == "AXISRAM" || r.name == "SRAM1-3");
             rule(
                 dma_ok,
@@ -294,6 +329,56 @@ pub fn rules(image: &Image) -> Report {
         }
     }
 
+    // Sections zero-filled by the firmware's code: NOLOAD, in on-chip RAM, out of reach of the
+    // reset handler's zero loop and copy.
+    for Section { name, range, nobits } in &image.sections {
+        if !ZERO_FILLED_BY_CODE.iter().any(|base| is_section(name, base)) {
+            continue;
+        }
+        let home = region_of(range);
+        let ram = home.is_some_and(|r| ON_CHIP_RAM.contains(&r.name));
+        let by_code = !overlap(range, bss) && !overlap(range, data);
+        rule(
+            *nobits && ram && by_code,
+            format!(
+                "{name} {} NOLOAD in {}, zero-filled by code (outside the reset handler's ranges)",
+                hex(range),
+                home.map_or("?", |r| r.name)
+            ),
+            format!(
+                "{name} {} must be NOLOAD{}, in an on-chip RAM{} and outside __sbss..__ebss \
+                 and __sdata..__edata{}",
+                hex(range),
+                if *nobits { "" } else { " (it has file contents)" },
+                if ram { "" } else { " (it is not)" },
+                if by_code { "" } else { " (it overlaps them: the reset handler writes it)" },
+            ),
+        );
+    }
+
+    // No two allocated sections share an address.
+    let sections = &image.sections;
+    let overlaps: Vec<String> = sections
+        .iter()
+        .enumerate()
+        .flat_map(|(i, a)| sections[i + 1..].iter().map(move |b| (a, b)))
+        .filter(|(a, b)| overlap(&a.range, &b.range))
+        .map(|(a, b)| {
+            format!(
+                "sections {} {} and {} {} overlap",
+                a.name,
+                hex(&a.range),
+                b.name,
+                hex(&b.range)
+            )
+        })
+        .collect();
+    rule(
+        overlaps.is_empty(),
+        format!("{} allocated sections, no two overlapping", sections.len()),
+        overlaps.join("; "),
+    );
+
     // Every byte the loader stores goes to flash.
     for load in &image.loads {
         rule(
@@ -309,8 +394,12 @@ pub fn rules(image: &Image) -> Report {
 mod tests {
     use super::*;
 
+    fn section(name: &str, range: Range<u64>, nobits: bool) -> Section {
+        Section { name: name.into(), range, nobits }
+    }
+
     /// A good image: statics at the start of DTCM, the guard above them, the stack at the top,
-    /// DMA buffers in AXI SRAM.
+    /// DMA buffers and then the DSP state in AXI SRAM.
     fn good() -> Image {
         Image {
             vector_table: 0x0800_0000,
@@ -323,11 +412,12 @@ mod tests {
             stack_end: 0x2001_6060,
             stack_guard: true,
             sections: vec![
-                (".vector_table".into(), 0x0800_0000..0x0800_0298),
-                (".text".into(), 0x0800_0298..0x0801_0000),
-                (".data".into(), 0x2000_0000..0x2000_0010),
-                (".bss".into(), 0x2000_0010..0x2001_6050),
-                (".axisram".into(), 0x2400_0000..0x2401_0000),
+                section(".vector_table", 0x0800_0000..0x0800_0298, false),
+                section(".text", 0x0800_0298..0x0801_0000, false),
+                section(".data", 0x2000_0000..0x2000_0010, false),
+                section(".bss", 0x2000_0010..0x2001_6050, true),
+                section(".axisram", 0x2400_0000..0x2401_0000, true),
+                section(".dsp_state", 0x2401_0000..0x2402_f1e0, true),
             ],
             loads: std::iter::once(0x0800_0000..0x0801_2010).collect(),
         }
@@ -375,8 +465,8 @@ mod tests {
     #[test]
     fn dma_buffers_in_dtcm_data_in_flash_and_a_load_outside_flash_are_caught() {
         let mut image = good();
-        image.sections.push((".axisram".into(), 0x2001_8000..0x2001_9000));
-        image.sections.push((".data".into(), 0x2400_0000..0x2400_0010));
+        image.sections.push(section(".axisram", 0x2001_8000..0x2001_9000, true));
+        image.sections.push(section(".data", 0x2400_0000..0x2400_0010, false));
         image.loads.push(0x2000_0000..0x2000_0010);
         let report = rules(&image);
         for needle in ["not in AXI SRAM", ".data at", "not inside flash"] {
@@ -386,6 +476,52 @@ mod tests {
                 report.violations
             );
         }
+    }
+
+    /// `good()` with its `.dsp_state` section replaced by `dsp_state`.
+    fn with_dsp_state(dsp_state: Section) -> Report {
+        let mut image = good();
+        image.sections.retain(|s| s.name != ".dsp_state");
+        image.sections.push(dsp_state);
+        rules(&image)
+    }
+
+    fn caught(report: &Report, needle: &str) -> bool {
+        report.violations.iter().any(|v| v.contains(needle))
+    }
+
+    #[test]
+    fn dsp_state_loaded_zeroed_by_the_reset_handler_or_outside_ram_is_caught() {
+        // With file contents (not NOLOAD): the image would store 127 KB of zeros.
+        let report = with_dsp_state(section(".dsp_state", 0x2401_0000..0x2402_f1e0, false));
+        assert!(caught(&report, "(it has file contents)"), "{:?}", report.violations);
+        // Inside __sbss..__ebss: the reset handler would zero it (and it overlaps .bss).
+        let report = with_dsp_state(section(".dsp_state", 0x2000_1000..0x2000_2000, true));
+        assert!(caught(&report, "the reset handler writes it"), "{:?}", report.violations);
+        assert!(caught(&report, "overlap"), "{:?}", report.violations);
+        // In flash.
+        let report = with_dsp_state(section(".dsp_state", 0x0802_0000..0x0802_1000, true));
+        assert!(caught(&report, "(it is not)"), "{:?}", report.violations);
+        // Across the end of AXI SRAM: in no region, so in no RAM.
+        let report = with_dsp_state(section(".dsp_state.x", 0x2407_f000..0x2408_1000, true));
+        assert!(caught(&report, "not inside one memory region"), "{:?}", report.violations);
+        assert!(caught(&report, "(it is not)"), "{:?}", report.violations);
+    }
+
+    #[test]
+    fn dsp_state_over_the_dma_buffers_is_caught() {
+        let report = with_dsp_state(section(".dsp_state", 0x2400_f000..0x2402_f1e0, true));
+        assert_eq!(report.violations.len(), 1, "{:?}", report.violations);
+        assert!(caught(&report, "sections .axisram"), "{:?}", report.violations);
+        assert!(caught(&report, "and .dsp_state"), "{:?}", report.violations);
+    }
+
+    #[test]
+    fn zero_filled_sections_are_named_exactly() {
+        assert!(is_section(".dsp_state", ".dsp_state"));
+        assert!(is_section(".axisram.buffers", ".axisram"));
+        assert!(!is_section(".axisramx", ".axisram"));
+        assert!(!is_section(".bss", ".dsp_state"));
     }
 
     #[test]

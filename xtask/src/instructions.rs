@@ -210,9 +210,10 @@ fn addr2line(path: &Path, addresses: &[u64]) -> Result<Vec<Vec<String>>> {
 
 /// Functions that are a stage, or part of one, wherever they are inlined: the innermost of
 /// these in an inline chain decides.
-const STAGE_FUNCTIONS: [(&str, Probe); 14] = [
+const STAGE_FUNCTIONS: [(&str, Probe); 21] = [
     ("aim_wire::", Probe::Encode),
     ("aim_dsp::gcc_phat::phat_band", Probe::Phat),
+    ("aim_dsp::gcc_phat::phat_unit", Probe::Phat),
     ("aim_dsp::gcc_phat::accumulate_cross", Probe::Phat),
     ("aim_dsp::gcc_phat::weight_by_coherence", Probe::Inverse),
     ("aim_dsp::gcc_phat::estimate_delay", Probe::Inverse),
@@ -220,8 +221,18 @@ const STAGE_FUNCTIONS: [(&str, Probe); 14] = [
     ("aim_dsp::doa::", Probe::Doa),
     ("aim_dsp::bpf::", Probe::Bpf),
     ("aim_dsp::idframe::", Probe::Features),
+    // The detector only: the waveform (`beacon::waveform_at`) is also the golden input's
+    // synthesis, which must not count as detection (it runs at configuration in the pipeline).
+    ("aim_dsp::beacon::Detector::", Probe::Beacon),
+    ("aim_dsp::beacon::Picker::", Probe::Beacon),
+    ("aim_dsp::beacon::refine", Probe::Beacon),
+    ("aim_dsp::snippet::", Probe::Snippet),
+    ("aim_dsp::pipeline::Pipeline::emit_snippets", Probe::Snippet),
     // The pipeline's steps: what they do outside the functions above.
     ("aim_dsp::pipeline::Pipeline::spatial_block", Probe::Fft),
+    // The spatial path's Q15 conversion (its only caller): without this line it counted as
+    // `other` or `fft` as the compiler's inline records happened to fall.
+    ("aim_dsp::frontend::to_q15", Probe::Fft),
     ("aim_dsp::pipeline::Pipeline::estimate_direction", Probe::Doa),
     ("aim_dsp::pipeline::Pipeline::spectral_block", Probe::Bpf),
     ("aim_dsp::pipeline::", Probe::PipelineOther),
@@ -307,8 +318,16 @@ impl Report {
     /// [`classify`] no longer recognises aim-dsp's function names, and that stage's
     /// instructions went to `other`.
     pub fn check_stages(&self) -> Result<()> {
-        const STAGES: [Probe; 6] =
-            [Probe::Fft, Probe::Phat, Probe::Inverse, Probe::Doa, Probe::Bpf, Probe::Features];
+        const STAGES: [Probe; 8] = [
+            Probe::Fft,
+            Probe::Phat,
+            Probe::Inverse,
+            Probe::Doa,
+            Probe::Bpf,
+            Probe::Features,
+            Probe::Beacon,
+            Probe::Snippet,
+        ];
         for section in &self.sections {
             if section.stage(Probe::PipelineOther.name()).unwrap_or(0) == 0 {
                 continue; // not a pipeline section
@@ -425,13 +444,18 @@ mod tests {
         let error = format!("{:#}", report.check_stages().unwrap_err());
         assert!(error.contains("8mic") && error.contains("phat"), "{error}");
         let all = "section 1\nprobe 2 1 1\nprobe 3 1 1\nprobe 4 1 1\nprobe 5 1 1\n\
-                   probe 6 1 1\nprobe 7 1 1\nprobe 11 1 1\nsection 2\nprobe 8 48230 1\n";
+                   probe 6 1 1\nprobe 7 1 1\nprobe 11 1 1\nprobe 12 1 1\nprobe 13 1 1\n\
+                   section 2\nprobe 8 48230 1\n";
         parse(GUEST, all).unwrap().check_stages().unwrap();
         // Without the features stage (the map lost `idframe::`): an error naming it.
         let no_features = all.replace("probe 11 1 1\n", "");
         let error =
             format!("{:#}", parse(GUEST, &no_features).unwrap().check_stages().unwrap_err());
         assert!(error.contains("features"), "{error}");
+        // Without the snippet stage (the map lost `snippet::`): an error naming it.
+        let no_snippet = all.replace("probe 13 1 1\n", "");
+        let error = format!("{:#}", parse(GUEST, &no_snippet).unwrap().check_stages().unwrap_err());
+        assert!(error.contains("snippet"), "{error}");
     }
 
     #[test]
@@ -492,6 +516,22 @@ mod tests {
         // Out-of-line shared code and the guest's own code: charged to the caller.
         assert_eq!(classify(&chain(&["microfft::impls::cfft::CFft::compute_butterflies"])), None);
         assert_eq!(classify(&chain(&["aim_golden::signal::Signal::fill"])), None);
+        // The beacon's waveform is the detector's only inside the detector: in the golden
+        // input's synthesis it stays with the caller (`input`).
+        let waveform = "aim_dsp::beacon::waveform_at";
+        assert_eq!(classify(&chain(&[waveform, "aim_golden::signal::Signal::new"])), None);
+        assert_eq!(
+            classify(&chain(&[waveform, "aim_dsp::beacon::Detector::configure"])),
+            Some(Probe::Beacon)
+        );
+        assert_eq!(
+            classify(&chain(&["aim_dsp::beacon::Picker::take", "aim_dsp::beacon::Detector::push"])),
+            Some(Probe::Beacon)
+        );
+        assert_eq!(
+            classify(&chain(&["aim_dsp::snippet::quantize", "aim_dsp::pipeline::Pipeline::push"])),
+            Some(Probe::Snippet)
+        );
         // The encode path, inlined into the sink inside `push` or out of line.
         let closure = "cost::measure::{closure#0}";
         assert_eq!(

@@ -248,6 +248,8 @@ impl Printer {
         }
         let line = match o {
             Output::Doa(_) if self.skip_doa => return,
+            // Audio for the host's inter-array delays, not an analysis result.
+            Output::Snippet(_) => return,
             Output::Doa(d) => {
                 self.counts[0] += 1;
                 let t = d.sample_index as f64 / self.fs;
@@ -308,6 +310,22 @@ impl Printer {
                     format!(
                         "{t:9.3} s  mfcc   c0 {:7.1} dB  c1 {:6.1} dB  comb f0 {f0:7.1} Hz  salience {:.1} dB",
                         f.mfcc_db[0], f.mfcc_db[1], f.harmonic.salience_db
+                    )
+                }
+            }
+            Output::Beacon(b) => {
+                let arrival = b.sample_index as f64 + f64::from(b.fraction);
+                let t = arrival / self.fs;
+                if self.jsonl {
+                    serde_json::json!({
+                        "kind": "beacon", "t": t, "arrival_samples": arrival,
+                        "quality": b.quality, "level_db": b.level_db,
+                    })
+                    .to_string()
+                } else {
+                    format!(
+                        "{t:9.6} s  beacon arrival {arrival:.4} samples  quality {:.3}  level {:.1} dBFS",
+                        b.quality, b.level_db
                     )
                 }
             }

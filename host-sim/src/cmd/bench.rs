@@ -260,6 +260,9 @@ pub struct RunResult {
     pub filter: FilterKind,
     /// Its errors.
     pub summary: Summary,
+    /// With a beacon: the largest clock sync error over the arrays 10 s after the first
+    /// beacon, µs (`host-sim fly`'s `SYNC_AFTER_S`); NaN without.
+    pub sync_max_us: f64,
 }
 
 /// Mean and sample standard deviation (0 for one value).
@@ -278,18 +281,19 @@ pub fn mean_sd(x: &[f64]) -> (f64, f64) {
 }
 
 /// Per family and filter, over seeds: (family, filter, seeds, [mean, median, p90,
-/// availability, motion class, live mean, good availability] as (mean, sd)).
-type Row = (String, FilterKind, usize, [(f64, f64); 7]);
+/// availability, motion class, live mean, good availability, clock sync max] as (mean, sd);
+/// the sync over the runs that have one, NaN if none).
+type Row = (String, FilterKind, usize, [(f64, f64); 8]);
 
 fn aggregate(suite: &Suite, results: &[RunResult]) -> Vec<Row> {
     let mut rows = Vec::new();
     for fam in &suite.families {
         for &filter in &suite.filters {
-            let runs: Vec<&Summary> = results
-                .iter()
-                .filter(|r| r.family == fam.name && r.filter == filter)
-                .map(|r| &r.summary)
-                .collect();
+            let of_family: Vec<&RunResult> =
+                results.iter().filter(|r| r.family == fam.name && r.filter == filter).collect();
+            let runs: Vec<&Summary> = of_family.iter().map(|r| &r.summary).collect();
+            let syncs: Vec<f64> =
+                of_family.iter().map(|r| r.sync_max_us).filter(|v| v.is_finite()).collect();
             if runs.is_empty() {
                 continue;
             }
@@ -307,6 +311,7 @@ fn aggregate(suite: &Suite, results: &[RunResult]) -> Vec<Row> {
                     stat(|s| s.motion_accuracy),
                     stat(|s| s.live_mean_m),
                     stat(|s| s.good_availability),
+                    mean_sd(&syncs),
                 ],
             ));
         }
@@ -317,13 +322,13 @@ fn aggregate(suite: &Suite, results: &[RunResult]) -> Vec<Row> {
 /// The CSV of one row per run.
 pub fn runs_csv(results: &[RunResult]) -> String {
     let mut s = String::from(
-        "family,seed,filter,mean_m,median_m,p90_m,availability,fixes,due,motion_accuracy,los_accuracy,live_mean_m,good_availability\n",
+        "family,seed,filter,mean_m,median_m,p90_m,availability,fixes,due,motion_accuracy,los_accuracy,live_mean_m,good_availability,sync_max_us\n",
     );
     for r in results {
         let m = &r.summary;
         let _ = writeln!(
             s,
-            "{},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{:.4},{},{:.4},{:.4}",
+            "{},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{:.4},{},{:.4},{:.4},{}",
             r.family,
             r.seed,
             filter_name(r.filter),
@@ -337,6 +342,7 @@ pub fn runs_csv(results: &[RunResult]) -> String {
             m.los_accuracy.map_or(String::new(), |a| format!("{a:.4}")),
             m.live_mean_m,
             m.good_availability,
+            if r.sync_max_us.is_finite() { format!("{:.2}", r.sync_max_us) } else { String::new() },
         );
     }
     s
@@ -346,14 +352,16 @@ pub fn runs_csv(results: &[RunResult]) -> String {
 fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (String, String) {
     let rows = aggregate(suite, results);
     let mut csv = String::from(
-        "family,filter,seeds,mean_m,mean_m_sd,median_m,median_m_sd,p90_m,p90_m_sd,availability,availability_sd,motion_accuracy,motion_accuracy_sd,live_mean_m,live_mean_m_sd,good_availability,good_availability_sd\n",
+        "family,filter,seeds,mean_m,mean_m_sd,median_m,median_m_sd,p90_m,p90_m_sd,availability,availability_sd,motion_accuracy,motion_accuracy_sd,live_mean_m,live_mean_m_sd,good_availability,good_availability_sd,sync_max_us,sync_max_us_sd\n",
     );
     let mut md = format!(
         "{} seeds; each cell: mean ± sd over seeds of the per-run figure. Errors are at the \
          instant a fix describes; *live* is against where the drone is when the fix becomes \
-         available; *fixes ≤ {good} m* is the share of due output instants with a fix that close.\n\n\
-         | family | filter | seeds | mean error | median error | p90 error | live mean error | availability | fixes ≤ {good} m | motion class |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+         available; *fixes ≤ {good} m* is the share of due output instants with a fix that close; \
+         *clock sync* is the largest error of the beacon clock model over the arrays 10 s after \
+         the first beacon (scenarios with a beacon).\n\n\
+         | family | filter | seeds | mean error | median error | p90 error | live mean error | availability | fixes ≤ {good} m | motion class | clock sync |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
         seeds_label,
         good = host_sim::eval::metrics::GOOD_FIX_M,
     );
@@ -365,7 +373,7 @@ fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (S
         csv.push('\n');
         let _ = writeln!(
             md,
-            "| {family} | {} | {n} | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.1} ± {:.1} % | {:.1} ± {:.1} % | {:.1} ± {:.1} % |",
+            "| {family} | {} | {n} | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.1} ± {:.1} % | {:.1} ± {:.1} % | {:.1} ± {:.1} % | {} |",
             filter_name(*filter),
             st[0].0,
             st[0].1,
@@ -381,6 +389,11 @@ fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (S
             100.0 * st[6].1,
             100.0 * st[4].0,
             100.0 * st[4].1,
+            if st[7].0.is_finite() {
+                format!("{:.1} ± {:.1} µs", st[7].0, st[7].1)
+            } else {
+                "—".into()
+            },
         );
     }
     (csv, md)
@@ -468,6 +481,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 seed,
                 filter: r.kind,
                 summary: r.summary,
+                sync_max_us: r.sync.map_or(f64::NAN, |e| e.max_us),
             })
             .collect())
     };

@@ -81,7 +81,13 @@ pub(crate) struct TrackRun {
     pub summary: metrics::Summary,
     /// Its fixes' latency.
     pub latency: aim_tracker::session::FixStats,
+    /// With a beacon: the clock model's sync error [`SYNC_AFTER_S`] after its first beacon.
+    pub sync: Option<host_sim::eval::sync::SyncError>,
 }
+
+/// When the clock sync error is read: this long after the first beacon arrival, s (issue 14:
+/// "clock sync error ≤ 20 µs 10 s after start").
+pub(crate) const SYNC_AFTER_S: f64 = 10.0;
 
 /// Runs `host-sim fly`.
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -235,6 +241,7 @@ pub(crate) fn track_recorded(
 ) -> anyhow::Result<Vec<TrackRun>> {
     let (profile, period) = (how.profile, how.period);
     let site = aim_tracker::site::Site::parse(&rec.site_text, &out.join("site.toml"))?;
+    let sync = aim_tracker::site::SiteSync::parse(&rec.site_text, &out.join("site.toml"))?;
     // The drone classifier `aim replay` runs by default (the bundled model); the profile
     // follows the recognised type only when none was given, as there. Read once for every
     // filter.
@@ -251,7 +258,9 @@ pub(crate) fn track_recorded(
             fuse_arrays: how.fuse_arrays,
             ..TrackerConfig::default()
         };
-        let tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?;
+        let tracker = Tracker::new(site.clone(), profile.clone(), kind, config)?
+            .with_sync(&sync)
+            .keep_clock_history();
         let tracked = tracker.array_id();
         let array_index =
             rec.truth.array_ids.iter().position(|&id| u16::from(id) == tracked).unwrap_or(0);
@@ -303,7 +312,24 @@ pub(crate) fn track_recorded(
             tracker.profile().name,
             tracker.profile().k_v
         );
-        runs.push(TrackRun { kind, summary, latency });
+        let fs = f64::from(site.sample_rate_hz.unwrap_or(48_000));
+        let sync = host_sim::eval::sync::error_after(
+            tracker.clock_history(),
+            &rec.truth,
+            fs,
+            SYNC_AFTER_S,
+        );
+        if let Some(e) = &sync {
+            eprintln!(
+                "{}: clock sync {SYNC_AFTER_S} s after the first beacon: max {:.2} µs, rms {:.2} µs over {} of {} arrays",
+                filter_name(kind),
+                e.max_us,
+                e.rms_us,
+                e.synced,
+                e.arrays
+            );
+        }
+        runs.push(TrackRun { kind, summary, latency, sync });
     }
     Ok(runs)
 }
@@ -395,7 +421,8 @@ mod tests {
         // The inputs spanned 0–12 s but the tracker gave no fix: the median is undefined.
         let summary = metrics::evaluate(&[], &truth, 0.1, 0.0, 12.0, 0);
         assert!(summary.median_m.is_nan() && summary.due > 100);
-        let run = TrackRun { kind: FilterKind::Aim, summary, latency: Default::default() };
+        let run =
+            TrackRun { kind: FilterKind::Aim, summary, latency: Default::default(), sync: None };
         let line = no_fix_line("s", &run).expect("no fixes");
         assert_eq!(
             line,

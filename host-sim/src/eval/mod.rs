@@ -4,11 +4,13 @@
 //! - [`link`]: an array's recording → TDM words → `aim-dsp` → frames encoded by
 //!   `aim_wire::from_dsp` into the bytes a board would send, and decoded again;
 //! - [`metrics`]: position error (mean, median, p90), availability, motion-class accuracy;
-//! - [`plot`]: a PNG of the track against the truth (top view and height), no text needed.
+//! - [`plot`]: a PNG of the track against the truth (top view and height), no text needed;
+//! - [`sync`]: the beacon clock model's error against the arrays' true clocks.
 
 pub mod link;
 pub mod metrics;
 pub mod plot;
+pub mod sync;
 
 #[cfg(test)]
 mod tests {

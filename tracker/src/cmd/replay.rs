@@ -94,6 +94,7 @@ impl TrackOptions {
     /// The session (intake and tracker) these options describe.
     pub fn build(&self) -> anyhow::Result<Session> {
         let site = Site::load(&self.site)?;
+        let sync = aim_tracker::site::SiteSync::load(&self.site)?;
         let profile = match &self.profile {
             Some(p) => Profile::from_arg(p)?,
             None => Profile::dji_mini_2(),
@@ -111,7 +112,8 @@ impl TrackOptions {
             ..TrackerConfig::default()
         };
         let tracker = Tracker::new(site.clone(), profile, self.filter, config)
-            .with_context(|| format!("site {}", self.site.display()))?;
+            .with_context(|| format!("site {}", self.site.display()))?
+            .with_sync(&sync);
         let session = Session::new(tracker, site, IntakeConfig::default());
         if self.no_id {
             return Ok(session);

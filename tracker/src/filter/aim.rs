@@ -47,6 +47,9 @@ pub struct AimConfig {
     /// Probability that another array's bearing is an outlier (uniform over the directions)
     /// in the hypotheses' likelihood ([`crate::filter::ekf::Ekf::update_bearing_other`]).
     pub other_outlier_probability: f64,
+    /// Probability that an inter-array delay is a wrong correlation peak (uniform over the
+    /// window it was searched in).
+    pub range_difference_outlier_probability: f64,
     /// White-acceleration density while moving along the class's axes, m²/s³.
     pub q_moving: f64,
     /// White-acceleration density otherwise, m²/s³.
@@ -62,6 +65,11 @@ pub struct AimConfig {
     pub zenith_bias_tau_s: f64,
     /// Velocity noise of the motion-class pseudo-measurements, m/s.
     pub pseudo_sigma: f64,
+    /// The same while inter-array range differences come in (within the last
+    /// [`RANGED_FOR_S`]): they observe the motion themselves, and a class wrongly read as
+    /// hover must not hold the track back against them (tuned on the distributed tuning seeds:
+    /// zigzag20 0.43 → 0.25 m with the span fix; BENCHMARKS.md), m/s.
+    pub pseudo_sigma_ranged: f64,
     /// Vertical-velocity noise of the hold-altitude pseudo-measurement outside vertical
     /// motion, m/s (a multirotor's altitude controller holds height to a few cm/s).
     pub hold_altitude_sigma: f64,
@@ -126,6 +134,7 @@ impl Default for AimConfig {
             other_zenith_sigma: 5.0f64.to_radians(),
             other_gate: 4.0,
             other_outlier_probability: 0.05,
+            range_difference_outlier_probability: 0.1,
             q_moving: 0.6,
             q_still: 0.02,
             q_cruise: 0.02,
@@ -133,6 +142,7 @@ impl Default for AimConfig {
             zenith_bias_sigma: 4.0f64.to_radians(),
             zenith_bias_tau_s: 20.0,
             pseudo_sigma: 0.1,
+            pseudo_sigma_ranged: 0.5,
             hold_altitude_sigma: 0.02,
             q_hold_altitude: 0.001,
             leg_headings: 8,
@@ -163,7 +173,12 @@ pub struct AimFilter {
     last_class: Option<MotionClass>,
     /// Time since the motion class last changed, s.
     since_class_change_s: f64,
+    /// Time of the last step that carried range differences, s.
+    last_ranged_t: Option<f64>,
 }
+
+/// How long after the last range difference the filter counts as ranged, s.
+pub const RANGED_FOR_S: f64 = 1.0;
 
 impl AimFilter {
     /// A filter with explicit tunables.
@@ -399,6 +414,13 @@ impl Filter for AimFilter {
             )),
             _ => None,
         };
+        if !step.range_differences.is_empty() {
+            self.last_ranged_t = Some(step.t);
+        }
+        let pseudo_sigma = match self.last_ranged_t {
+            Some(t) if step.t - t <= RANGED_FOR_S => c.pseudo_sigma_ranged,
+            _ => c.pseudo_sigma,
+        };
         let s = step.speed;
         let moving = matches!(step.motion, MotionClass::Horizontal | MotionClass::Vertical);
         let q_rest = if manoeuvre { c.q_rest_manoeuvre } else { c.q_rest };
@@ -409,11 +431,11 @@ impl Filter for AimFilter {
             let mut ll = 0.0;
             match step.motion {
                 MotionClass::Hover | MotionClass::Yaw => {
-                    f.update_velocity(&[0, 1], &[0.0, 0.0], c.pseudo_sigma);
+                    f.update_velocity(&[0, 1], &[0.0, 0.0], pseudo_sigma);
                     f.update_velocity(&[2], &[0.0], c.hold_altitude_sigma);
                 }
                 MotionClass::Vertical => {
-                    f.update_velocity(&[0, 1], &[0.0, 0.0], c.pseudo_sigma);
+                    f.update_velocity(&[0, 1], &[0.0, 0.0], pseudo_sigma);
                     ll += f
                         .update_velocity(&[2], &[s.vertical], s.vertical_sigma.max(0.05))
                         .unwrap_or(0.0);
@@ -442,6 +464,18 @@ impl Filter for AimFilter {
                         (saz, szen),
                         step.t - b.t,
                         (c.other_gate, c.other_outlier_probability),
+                    )
+                    .unwrap_or(0.0);
+            }
+            for rd in &step.range_differences {
+                ll += f
+                    .update_range_difference(
+                        rd.p,
+                        rd.q,
+                        rd.range_difference_m,
+                        rd.sigma_m,
+                        step.t - rd.t,
+                        (c.other_gate, c.range_difference_outlier_probability, rd.span_m),
                     )
                     .unwrap_or(0.0);
             }
@@ -540,6 +574,7 @@ mod tests {
             };
             let step = Step {
                 others: Vec::new(),
+                range_differences: Vec::new(),
                 t,
                 dt,
                 array: &array,
@@ -619,6 +654,7 @@ mod tests {
         {
             let step = Step {
                 others: Vec::new(),
+                range_differences: Vec::new(),
                 t: k as f64 * 0.1,
                 dt: 0.1,
                 array: &array,

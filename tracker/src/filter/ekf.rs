@@ -303,6 +303,46 @@ impl Ekf {
         Some(((1.0 - outlier) * gaussian + outlier * uniform).ln())
     }
 
+    /// Range-difference update from an inter-array delay (ALGORITHMS.md §9, eq. 9): the
+    /// drone was `range_difference_m` (m) farther from microphone point `p` than from `q`
+    /// (world m), ± `sigma_m`, `lag_s` before the state's time (predicted from
+    /// `x − v·lag_s`). Returns the log-likelihood under a Gaussian with outliers (probability
+    /// `outlier` that the delay is a wrong correlation peak, uniform over ±`span_m`, the
+    /// prior window it was searched in); a delay beyond a Mahalanobis distance `gate` updates
+    /// nothing; None if the innovation covariance is singular.
+    #[allow(clippy::too_many_arguments)]
+    pub fn update_range_difference(
+        &mut self,
+        p: [f64; 3],
+        q: [f64; 3],
+        range_difference_m: f64,
+        sigma_m: f64,
+        lag_s: f64,
+        (gate, outlier, span_m): (f64, f64, f64),
+    ) -> Option<f64> {
+        let (x, v) = (self.position(), self.velocity());
+        let then = [0, 1, 2].map(|i| x[i] - v[i] * lag_s);
+        let dp = [then[0] - p[0], then[1] - p[1], then[2] - p[2]];
+        let dq = [then[0] - q[0], then[1] - q[1], then[2] - q[2]];
+        let (rp, rq) = (crate::observation::norm(dp), crate::observation::norm(dq));
+        if rp < 1e-6 || rq < 1e-6 {
+            return None;
+        }
+        let mut h = SMatrix::<f64, 1, STATE>::zeros();
+        for i in 0..3 {
+            let g = dp[i] / rp - dq[i] / rq;
+            h[(0, i)] = g;
+            h[(0, 3 + i)] = -lag_s * g;
+        }
+        let r = diagonal([sigma_m * sigma_m]);
+        let (maha, det) =
+            self.innovate(&[range_difference_m], &[rp - rq], &h, &r, Residual::Linear, gate)?;
+        let outlier = outlier.clamp(1e-9, 1.0);
+        let gaussian = (-0.5 * maha).exp() / (std::f64::consts::TAU * det).sqrt();
+        let uniform = 1.0 / (2.0 * span_m.max(1e-3));
+        Some(((1.0 - outlier) * gaussian + outlier * uniform).ln())
+    }
+
     /// Azimuth-only update (rad, array frame, standard deviation `sigma`).
     pub fn update_azimuth(&mut self, array: &ArrayPose, azimuth: f64, sigma: f64) -> Option<f64> {
         let ((az0, _), jacobian) = self.predicted_bearing(array);
@@ -493,6 +533,37 @@ mod tests {
         // Its likelihood is the outlier floor, ln(ε / π²), whatever the hypothesis.
         let floor = (0.05 / (std::f64::consts::PI * std::f64::consts::PI)).ln();
         assert!((gated - floor).abs() < 1e-6 && gated < ll, "{gated} against {ll}, floor {floor}");
+    }
+
+    /// A range difference measured where the drone was `lag` ago: exact there, no move; the
+    /// same read as now moves the state onto the hyperboloid; one far off is gated at the
+    /// outlier floor.
+    #[test]
+    fn a_range_difference_is_predicted_where_the_drone_was_and_gated() {
+        let (p, q) = ([0.0, 0.0, 0.0], [10.0, 0.0, 0.5]);
+        let start = [5.0, 4.0, 2.0, 1.5, 0.0, 0.0, 0.0, 0.0, 0.01];
+        let cov = diagonal([1.0, 1.0, 1.0, 0.1, 0.1, 0.1, 1e-6, 1e-6, 1e-6]);
+        let lag = 0.4;
+        let rd = |x: [f64; 3]| {
+            let d = |a: [f64; 3]| (0..3).map(|i| (x[i] - a[i]).powi(2)).sum::<f64>().sqrt();
+            d(p) - d(q)
+        };
+        let z = rd([5.0 - 1.5 * lag, 4.0, 2.0]);
+        let gate = (4.0, 0.05, 0.5);
+        let moved = |f: &Ekf| (0..3).map(|i| (f.x[i] - start[i]).powi(2)).sum::<f64>().sqrt();
+        let mut f = Ekf::new(start, cov);
+        let ll = f.update_range_difference(p, q, z, 0.01, lag, gate).unwrap();
+        assert!(moved(&f) < 1e-6, "moved {} m", moved(&f));
+        let mut g = Ekf::new(start, cov);
+        g.update_range_difference(p, q, z, 0.01, 0.0, gate).unwrap();
+        let now = [g.x[0], g.x[1], g.x[2]];
+        assert!(moved(&g) > 0.3 && (rd(now) - z).abs() < 0.02, "{} m off", rd(now) - z);
+        let mut h = Ekf::new(start, cov);
+        let gated = h.update_range_difference(p, q, z + 8.0, 0.01, lag, gate).unwrap();
+        assert_eq!(h.x, start);
+        // (the Gaussian 5σ out adds a few parts in a million)
+        let floor = (0.05 / (2.0 * 0.5f64)).ln();
+        assert!((gated - floor).abs() < 1e-4 && gated < ll, "{gated} against {ll}, floor {floor}");
     }
 
     #[test]

@@ -41,6 +41,26 @@ impl std::str::FromStr for FilterKind {
     }
 }
 
+/// One range difference from an inter-array delay (ALGORITHMS.md §9): at time `t` the drone
+/// was `range_difference_m` farther from point `p` than from point `q`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RangeDifference {
+    /// Time the delay describes (the centre of its correlation window, on the tracked
+    /// array's time base), s.
+    pub t: f64,
+    /// Where array p hears (its microphones' centre), world m.
+    pub p: [f64; 3],
+    /// Where array q hears, world m.
+    pub q: [f64; 3],
+    /// |S − p| − |S − q| = c·T_pq, m.
+    pub range_difference_m: f64,
+    /// Standard deviation, m.
+    pub sigma_m: f64,
+    /// Half width of the window the delay was searched in, m (a wrong peak lies anywhere in
+    /// it).
+    pub span_m: f64,
+}
+
 /// Everything a filter may use at one output instant.
 #[derive(Clone, Debug)]
 pub struct Step<'a> {
@@ -54,6 +74,9 @@ pub struct Step<'a> {
     /// once, at most `stale_s` old), with their arrays' poses
     /// ([`crate::tracker::TrackerConfig::fuse_arrays`]); empty with one array.
     pub others: Vec<(&'a ArrayPose, crate::observation::Bearing)>,
+    /// Range differences from inter-array delays measured since the previous step (each
+    /// given once); empty without a beacon clock and snippets.
+    pub range_differences: Vec<RangeDifference>,
     /// The DoA window's state, if it has one (LoS or not).
     pub doa: Option<DoaState>,
     /// Line-of-sight decision (false without DoA).

@@ -419,6 +419,7 @@ mod tests {
             let los = t < 8.0;
             let step = Step {
                 others: Vec::new(),
+                range_differences: Vec::new(),
                 t,
                 dt,
                 array: &array,

@@ -113,6 +113,7 @@ mod tests {
                 room: None,
                 cruise_speeds: None,
                 wake_splits: None,
+                range_differences: Vec::new(),
                 doppler: Vec::new(),
                 speed_of_sound_mps: 343.0,
             };

@@ -134,6 +134,26 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                     .collect::<Vec<_>>(),
             })
         }
+        Body::Beacon(p) => json!({
+            "arrival_samples": p.arrival_samples(h.sample_index),
+            "fraction": p.fraction_samples(),
+            "quality": round(f64::from(p.quality_f32()), 4),
+            "level_db": f64::from(p.level_cdb) / 100.0,
+        }),
+        Body::Snippet(p) => {
+            // A summary: the mantissas are audio for `interarray`, not for reading.
+            let n = p.samples.len();
+            let power = (0..n).map(|j| p.value(j).powi(2)).sum::<f64>() / n.max(1) as f64;
+            let peak = p.samples.iter().map(|m| m.unsigned_abs()).max().unwrap_or(0);
+            json!({
+                "decimation": p.decimation,
+                "exponent": p.exponent,
+                "samples": n,
+                "span_samples": n * usize::from(p.decimation),
+                "rms_dbfs": round(10.0 * power.max(1e-30).log10(), 2),
+                "peak_mantissa": peak,
+            })
+        }
         // A kind added to aim-wire but not yet here: header only.
         #[allow(unreachable_patterns)]
         _ => json!({}),

@@ -138,15 +138,17 @@ impl<R: Read> Merged<R> {
                                 input.rate_hz = f64::from(h.sample_rate_hz);
                             }
                         }
-                        // A frame that describes no span of audio (Hello, Health) is stamped
-                        // at an instant behind the audio sent before it: it goes with the
-                        // recording's current key and says nothing of its continuity (two in a
-                        // row would otherwise read as a reboot).
-                        let key = if matches!(f.body, Body::Hello(_) | Body::Health(_)) {
-                            input.key_s
-                        } else {
-                            input.key(end_s(&f, input.rate_hz))
-                        };
+                        // A frame that describes no span of audio (Hello, Health, Beacon) is
+                        // stamped at an instant behind the audio sent before it: it goes with
+                        // the recording's current key and says nothing of its continuity (two
+                        // in a row would otherwise read as a reboot).
+                        let key =
+                            if matches!(f.body, Body::Hello(_) | Body::Health(_) | Body::Beacon(_))
+                            {
+                                input.key_s
+                            } else {
+                                input.key(end_s(&f, input.rate_hz))
+                            };
                         input.head = Some((f, key));
                     }
                     Some(Err(e)) => {

@@ -103,7 +103,25 @@ pub fn sample_frames() -> Vec<Frame> {
             }),
         },
         Frame { header: header(4, 3_072_000), body: Body::Mfcc(sample_mfcc()) },
+        // A 60 dB beacon at 10 m, heard 1.2 s after start: arrival 57 912.6021 samples.
+        Frame {
+            header: header(5, 57_912),
+            body: Body::Beacon(aim_wire::Beacon::new(0.6021, 0.93, -71.25)),
+        },
+        Frame { header: header(5, 3_073_536), body: Body::Snippet(sample_snippet()) },
     ]
+}
+
+/// A `Snippet` payload: a 328 Hz fundamental with its second harmonic at 8 kHz, peak mantissa
+/// 120, exponent −12 (about −31 dBFS).
+pub fn sample_snippet() -> aim_wire::Snippet {
+    let samples = (0..aim_wire::SNIPPET_SAMPLES)
+        .map(|j| {
+            let w = 2.0 * std::f64::consts::PI * 328.0 * j as f64 / 8000.0;
+            (80.0 * w.sin() + 40.0 * (2.0 * w + 0.5).sin()).round() as i8
+        })
+        .collect();
+    aim_wire::Snippet { decimation: 6, exponent: -12, samples }
 }
 
 /// An `Mfcc` payload as a hovering drone at 4 m gives (levels of a real run, rounded): a
@@ -193,6 +211,17 @@ pub fn worst_case(kind: Kind) -> Frame {
             mfcc_ddb: [i16::MIN; aim_wire::MFCC_COEFFS],
             harmonic: [i16::MIN; aim_wire::MFCC_HARMONIC],
         }),
+        Kind::Beacon => Body::Beacon(aim_wire::Beacon {
+            fraction: u16::MAX,
+            quality: u8::MAX,
+            level_cdb: i16::MIN,
+        }),
+        // 0x7F: no byte for COBS to remove.
+        Kind::Snippet => Body::Snippet(aim_wire::Snippet {
+            decimation: u8::MAX,
+            exponent: i8::MIN,
+            samples: heapless::Vec::from_slice(&[i8::MAX; aim_wire::SNIPPET_SAMPLES]).unwrap(),
+        }),
         _ => unreachable!("a kind without a worst case: add it here"),
     };
     Frame { header, body }
@@ -202,7 +231,7 @@ pub fn worst_case(kind: Kind) -> Frame {
 pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
     let header = Header { array_id, seq, sample_index: rng.u64() >> rng.below(64) };
     let small = |rng: &mut Rng| (rng.u64() >> rng.below(64)) as u32;
-    let body = match rng.below(5) {
+    let body = match rng.below(6) {
         0 => Body::Hello(Hello {
             firmware_version: [rng.byte(), rng.byte(), rng.byte()],
             sample_rate_hz: small(rng),
@@ -240,6 +269,11 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
                 .collect(),
             detection: [Detection::Unstated, Detection::NoRotor, Detection::Rotor][rng.below(3)],
             quality: (0..rng.below(MAX_PEAKS + 1)).map(|_| rng.byte()).collect(),
+        }),
+        4 => Body::Beacon(aim_wire::Beacon {
+            fraction: rng.u64() as u16,
+            quality: rng.byte(),
+            level_cdb: rng.u64() as i16,
         }),
         3 => Body::Mfcc(aim_wire::Mfcc {
             span_samples: small(rng),

@@ -37,6 +37,12 @@ pub enum Probe {
     /// Drone-identification features of the BPF spectrum (`aim_dsp::idframe`): log-mel, MFCC,
     /// comb features.
     Features = 11,
+    /// The synchronisation beacon's detector on microphone 0 (`aim_dsp::beacon`): mixing
+    /// decimation filter, overlap-save correlation, peak refinement.
+    Beacon = 12,
+    /// The audio snippets for inter-array delays (`aim_dsp::snippet`, the pipeline's
+    /// `emit_snippets`): reading the BPF path's ring, block-floating quantisation.
+    Snippet = 13,
     /// Writes the totals of the section that ends here.
     Dump = 15,
 }
@@ -46,7 +52,7 @@ pub const SLOTS: usize = 16;
 
 impl Probe {
     /// Every probe, in id order.
-    pub const ALL: [Probe; 13] = [
+    pub const ALL: [Probe; 15] = [
         Probe::Untracked,
         Probe::Input,
         Probe::PipelineOther,
@@ -59,6 +65,8 @@ impl Probe {
         Probe::Encode,
         Probe::Pdm,
         Probe::Features,
+        Probe::Beacon,
+        Probe::Snippet,
         Probe::Dump,
     ];
 
@@ -87,6 +95,8 @@ impl Probe {
             Probe::Encode => "encode",
             Probe::Pdm => "pdm",
             Probe::Features => "features",
+            Probe::Beacon => "beacon",
+            Probe::Snippet => "snippet",
             Probe::Dump => "dump",
         }
     }
@@ -103,6 +113,8 @@ impl Probe {
                 | Probe::Bpf
                 | Probe::Pdm
                 | Probe::Features
+                | Probe::Beacon
+                | Probe::Snippet
         )
     }
 }

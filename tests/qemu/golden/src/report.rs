@@ -165,6 +165,22 @@ pub fn write_output(w: &mut impl Write, output: &Output) -> fmt::Result {
             }
         }
         Output::Health(h) => write!(w, "health {} {:08x}", h.sample_index, h.peak_dbfs.to_bits())?,
+        Output::Beacon(b) => write!(
+            w,
+            "beacon {} {:08x} {:08x} {:08x}",
+            b.sample_index,
+            b.fraction.to_bits(),
+            b.quality.to_bits(),
+            b.level_db.to_bits()
+        )?,
+        Output::Snippet(x) => {
+            // Integers only: the mantissas in hex are every bit (the frame line repeats them).
+            write!(w, "snippet {} {} {} ", x.sample_index, x.decimation, x.exponent)?;
+            for m in x.samples {
+                write!(w, "{:02x}", m as u8)?;
+            }
+            return writeln!(w);
+        }
         Output::Mfcc(f) => {
             write!(w, "mfcc {}", f.sample_index)?;
             let harmonic = f.harmonic.to_array();

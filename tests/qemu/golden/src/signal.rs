@@ -1,7 +1,11 @@
 //! Deterministic synthetic array input: a harmonic drone-like tone arriving with a fixed integer
 //! sample delay per microphone, plus white noise, as interleaved TDM words.
 //!
-//! Integer arithmetic only, so host and target produce the same words by construction.
+//! Microphone 0 also hears the synchronisation beacon (`aim_dsp::beacon`) once a second from
+//! sample [`BEACON_FIRST`] on, at a fractional start, so parity covers the `Beacon` output.
+//!
+//! Integer arithmetic only, but for the beacon's `libm` f64 waveform (software maths, the same
+//! bits on host and target), so host and target produce the same words by construction.
 
 /// Most microphones (TDM slots carrying a signal).
 pub const MAX_MICS: usize = 8;
@@ -10,6 +14,14 @@ pub const MAX_MICS: usize = 8;
 /// A 3-blade propeller at 110 Hz rotation: BPF 330 Hz and its harmonics.
 const HARMONICS: [(u64, i64); 4] =
     [(330_000, 1_200_000), (660_000, 700_000), (990_000, 400_000), (1_320_000, 250_000)];
+
+/// Start of the first beacon emission on microphone 0, samples (fractional), then one every
+/// [`BEACON_PERIOD`] samples.
+pub const BEACON_FIRST: f64 = 5_000.37;
+/// Beacon repetition period, samples.
+pub const BEACON_PERIOD: u64 = 48_000;
+/// Beacon peak amplitude, 24-bit sample units (about −32 dBFS).
+const BEACON_AMPLITUDE: f64 = 200_000.0;
 
 /// Peak amplitude of the white noise, 24-bit sample units.
 const NOISE_AMPLITUDE: i32 = 60_000;
@@ -27,6 +39,9 @@ pub struct Signal {
     /// Index of the next sample (frame) to produce.
     sample: u64,
     noise: u32,
+    /// The beacon's samples (24-bit units) from frame `BEACON_FIRST.ceil()` of an emission on,
+    /// computed once in [`Signal::new`] so the per-sample synthesis stays cheap.
+    beacon: [i32; aim_dsp::beacon::LEN],
 }
 
 impl Signal {
@@ -43,7 +58,21 @@ impl Signal {
         let increments = HARMONICS.map(|(millihertz, _)| {
             ((millihertz << 32) / (u64::from(sample_rate_hz) * 1000)) as u32
         });
-        Signal { delays: d, mics: delays.len(), tdm_slots, increments, sample: 0, noise: seed | 1 }
+        let mut beacon = [0i32; aim_dsp::beacon::LEN];
+        let first = libm::ceil(BEACON_FIRST);
+        for (i, b) in beacon.iter_mut().enumerate() {
+            let t = first + i as f64 - BEACON_FIRST;
+            *b = libm::round(BEACON_AMPLITUDE * aim_dsp::beacon::waveform_at(t)) as i32;
+        }
+        Signal {
+            delays: d,
+            mics: delays.len(),
+            tdm_slots,
+            increments,
+            sample: 0,
+            noise: seed | 1,
+            beacon,
+        }
     }
 
     /// Index of the next frame [`Signal::fill`] writes.
@@ -63,11 +92,24 @@ impl Signal {
                     sample += (amplitude * i64::from(sine_q15(t.wrapping_mul(increment)))) >> 15;
                 }
                 let noise = (self.next_noise() >> 8) as i32 % NOISE_AMPLITUDE;
+                if mic == 0 {
+                    sample += self.beacon_at(self.sample);
+                }
                 let sample = (sample as i32 + noise).clamp(-(1 << 23), (1 << 23) - 1);
                 *word = sample << 8;
             }
             self.sample += 1;
         }
+    }
+
+    /// The beacon on microphone 0 at frame `n`, 24-bit sample units.
+    fn beacon_at(&self, n: u64) -> i64 {
+        let first = libm::ceil(BEACON_FIRST) as u64;
+        if n < first {
+            return 0;
+        }
+        let i = ((n - first) % BEACON_PERIOD) as usize;
+        self.beacon.get(i).map_or(0, |&b| i64::from(b))
     }
 
     /// xorshift32.
