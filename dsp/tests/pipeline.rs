@@ -239,7 +239,7 @@ fn bands_end_below_the_spatial_paths_nyquist_frequency() {
     // (its top bin is the FFT's bin N/2 − 1) and gives finite directions.
     let g = Geometry::respeaker_6mic();
     for (fs, block) in [(16_000u32, 512usize), (16_000, 1024), (48_000, 512), (48_000, 1024)] {
-        let mut config = Config::new(g.clone(), fs);
+        let mut config = Config::new(g, fs);
         config.block_len = block;
         let nyquist = config.spatial_rate_hz() as f32 / 2.0;
         let bin = config.bin_hz();
