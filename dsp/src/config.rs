@@ -106,6 +106,12 @@ impl Config {
         self.sample_rate_hz as f32 / self.block_len as f32
     }
 
+    /// Sample rate of the spatial path (GCC-PHAT), Hz: the front end halves 48 kHz
+    /// ([`crate::frontend::FrontEnd`]'s half-band), 16 kHz is kept.
+    pub fn spatial_rate_hz(&self) -> u32 {
+        self.sample_rate_hz / crate::frontend::spatial_decimation(self.sample_rate_hz) as u32
+    }
+
     /// First and one-past-last FFT bin of the GCC-PHAT band.
     pub(crate) fn band_bins(&self) -> (usize, usize) {
         let lo = libm::ceilf(self.band_low_hz / self.bin_hz()) as usize;
@@ -132,11 +138,14 @@ impl Config {
         if max_lag > MAX_LAG as f32 {
             return Err(ConfigError::ApertureTooLarge { aperture_m: g.aperture_m() });
         }
-        let nyquist = self.sample_rate_hz as f32 / 2.0;
+        // The spatial path runs at the front end's output rate (48 kHz is halved): its band
+        // must end below that rate's Nyquist frequency, so that every band bin is one of the
+        // real FFT's bins 1 … N/2 − 1 (bin N/2, packed with DC, is not a band bin).
+        let nyquist = self.spatial_rate_hz() as f32 / 2.0;
         let band_ok = self.band_low_hz.is_finite()
             && self.band_high_hz.is_finite()
             && self.band_low_hz > 0.0
-            && self.band_high_hz <= nyquist
+            && self.band_high_hz < nyquist
             && self.band_high_hz - self.band_low_hz >= 4.0 * self.bin_hz();
         if !band_ok {
             return Err(ConfigError::Band { low_hz: self.band_low_hz, high_hz: self.band_high_hz });

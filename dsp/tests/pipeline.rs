@@ -231,3 +231,31 @@ fn whole_frame_runs_count_clipping_and_peaks_like_the_frame_by_frame_path() {
     assert_eq!(a, b);
     assert_eq!(c, b);
 }
+
+#[test]
+fn bands_end_below_the_spatial_paths_nyquist_frequency() {
+    // The spatial path runs at 24 kHz from 48 kHz input (12 kHz Nyquist) and at 16 kHz from
+    // 16 kHz (8 kHz). A band reaching that frequency is refused; one ending just below it runs
+    // (its top bin is the FFT's bin N/2 − 1) and gives finite directions.
+    let g = Geometry::respeaker_6mic();
+    for (fs, block) in [(16_000u32, 512usize), (16_000, 1024), (48_000, 512), (48_000, 1024)] {
+        let mut config = Config::new(g, fs);
+        config.block_len = block;
+        let nyquist = config.spatial_rate_hz() as f32 / 2.0;
+        let bin = config.bin_hz();
+        config.band_low_hz = nyquist - 40.0 * bin;
+        config.band_high_hz = nyquist;
+        assert!(Pipeline::new(&config).is_err(), "{fs} Hz, block {block}: band to Nyquist");
+        config.band_high_hz = nyquist - 0.25 * bin;
+        let mut p = Pipeline::new(&config).unwrap_or_else(|e| panic!("{fs} Hz, {block}: {e:?}"));
+        let words = plane_wave(&g, f64::from(fs), 16_384, 60.0, 50.0, 7);
+        let out = common::run(&mut p, &words);
+        let d = doas(&out);
+        assert!(!d.is_empty(), "{fs} Hz, block {block}: no direction");
+        assert!(d.iter().all(|d| d.azimuth_rad.is_finite() && d.zenith_rad.is_finite()));
+    }
+    // The audit's case: 10–16 kHz at 48 kHz (above the 24 kHz spatial rate's Nyquist).
+    let mut config = Config::new(g, 48_000);
+    (config.band_low_hz, config.band_high_hz) = (10_000.0, 16_000.0);
+    assert!(Pipeline::new(&config).is_err());
+}

@@ -821,6 +821,13 @@ impl Scenario {
         if !beacons.is_empty() && fs != aim_dsp::beacon::SAMPLE_RATE_HZ {
             return Err(format!("[[beacon]] needs sample_rate_hz = 48000 (got {fs})"));
         }
+        // The beacon is rendered along the image model's paths only: in a room with a late
+        // reverberant tail it would sound cleaner than the drone (not modelled: refused).
+        if !beacons.is_empty() && room.as_ref().is_some_and(|r| r.late_tail) {
+            return Err("[[beacon]] in a room with a late reverberant tail (room.late_tail, \
+                        the default with rt60_s) is not modelled: set late_tail = false"
+                .into());
+        }
 
         if f.array.is_empty() {
             return Err("no [[array]]: the scenario needs at least one microphone array".into());

@@ -70,6 +70,11 @@ fn every_scenario_input_of_the_issue_is_refused_by_key() {
         (edit("size_m = [10.0, 10.0, 4.0]", "size_m = [10.0, 10.0, 4.0]\nrt60_s = 0.8\nabsorption = 0.2"), "give absorption or rt60_s, not both"),
         (edit("size_m = [10.0, 10.0, 4.0]", "size_m = [10.0, 10.0, 4.0]\nrt60_s = -1.0"), "room.rt60_s -1 must lie"),
         (edit("size_m = [10.0, 10.0, 4.0]", "size_m = [10.0, 10.0, 4.0]\nreflection_order = 13"), "room.reflection_order 13"),
+        // The beacon is not rendered into a late reverberant tail.
+        (
+            format!("{}[[beacon]]\nposition = [5.0, 5.0, 0.3]\nlevel_db = 60.0\nperiod_s = 1.0\n", edit("size_m = [10.0, 10.0, 4.0]", "size_m = [10.0, 10.0, 4.0]\nrt60_s = 0.8")),
+            "[[beacon]] in a room with a late reverberant tail",
+        ),
         (
             edit("position = [3.0, 0.5, 0.05]", "position = [3.0, 0.5, 0.05]\npositions = [[0.0, 0.0], [0.5, 0.0], [0.0, 0.5], [0.5, 0.5]]"),
             "on-chip pipeline refuses",
