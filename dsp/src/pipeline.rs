@@ -686,8 +686,13 @@ mod tests {
         c.tdm_slots = 4;
         assert_eq!(Pipeline::new(&c).err(), Some(ConfigError::TdmSlots { slots: 4, mics: 6 }));
         c.tdm_slots = 8;
-        c.band_high_hz = 12_000.0;
-        assert_eq!(Pipeline::new(&c).err(), Some(ConfigError::BandTooWide { bins: 252 }));
+        c.band_high_hz = 12_000.0; // the spatial path's Nyquist frequency at 48 kHz
+        assert_eq!(
+            Pipeline::new(&c).err(),
+            Some(ConfigError::Band { low_hz: c.band_low_hz, high_hz: 12_000.0 })
+        );
+        c.band_high_hz = 11_900.0;
+        assert_eq!(Pipeline::new(&c).err(), Some(ConfigError::BandTooWide { bins: 249 }));
         let mut p = Pipeline::empty();
         let mut n = 0;
         p.push(&[1 << 20; 8 * 4096], &mut |_| n += 1);
