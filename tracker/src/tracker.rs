@@ -350,9 +350,14 @@ pub const DELAYS_EVERY_S: f64 = 0.25;
 /// Correlation window of an inter-array delay, s (BENCHMARKS.md "Snippets for inter-array
 /// delays": 0.25 s beats 0.5 s on a moving drone).
 pub const DELAYS_WINDOW_S: f64 = 0.25;
-/// How far before the output instant the window's centre lies, s: half a window plus the
-/// snippets' own span, so both arrays' windows have arrived.
-pub const DELAYS_LOOKBACK_S: f64 = 0.6;
+/// How far before the output instant the window's centre lies, s: half a window (0.125 s) plus
+/// a snippet's span (32 ms) plus 43 ms for boards whose clocks run ahead of the tracked one's
+/// (their snippets are released by their own sample time), so both arrays' windows have
+/// arrived. The range difference describes the drone that long ago, and the filter carries it
+/// to the output instant with its velocity: 0.6 s (session 13) left the track lagging 0.1-0.16
+/// s behind the drone (warehouse tuning seeds), 0.2 s took 0.04-0.13 m off the mean error on
+/// the tuning seeds (BENCHMARKS.md "Several arrays, session 14").
+pub const DELAYS_LOOKBACK_S: f64 = 0.2;
 /// Half width of the search around the predicted delay, s (under half a BPF period, ≈ 1.5 ms,
 /// so one harmonic peak; 0.41 m of range difference).
 pub const DELAYS_PRIOR_S: f64 = 1.2e-3;
