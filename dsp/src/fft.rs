@@ -12,10 +12,10 @@
 //! - [`dif_512`] / [`dit_512`]: forward transforms, natural order in → scrambled order out,
 //!   and scrambled in → natural out (radix 2 then radix 4 ⁴, and the mirror). A fast
 //!   convolution needs no reordering: DIF, multiply by a spectrum also computed by DIF, DIT.
-//! - [`rfft_512`]: microfft's `rfft_512` contract (the same packing: DC in `re` and Nyquist in
-//!   `im` of bin 0; bins 1…255 in order) on the same buffer, from a 256-point radix-4 DIF, a
-//!   digit reversal, and the real-to-complex recombination. Results differ from microfft's
-//!   by rounding only (tested against rustfft).
+//! - [`rfft_512_bins`]: chosen bins of a 512-point real FFT (the spatial path's band), from a
+//!   256-point radix-4 DIF of the packed pairs and the real-to-complex recombination of each
+//!   bin read from its two scrambled positions. The bins differ from microfft's `rfft_512` by
+//!   rounding only (tested against rustfft and microfft).
 //!
 //! The transforms are unnormalised: `X[k] = Σₙ x[n] e^{−2πikn/N}`.
 //!
@@ -25,7 +25,7 @@
 use microfft::Complex32;
 
 /// Length of the complex transforms [`dif_512`] and [`dit_512`], and of the real input of
-/// [`rfft_512`].
+/// [`rfft_512_bins`].
 pub const N: usize = 512;
 
 /// Twiddles W₅₁₂ᵏ = e^{−2πik/512} for k < 384 (the largest index used: 3·2·63 = 378 in the
@@ -216,38 +216,6 @@ pub fn dit_512(x: &mut [Complex32; N]) {
     }
 }
 
-/// In-place 512-point real FFT with microfft's `rfft_512` output: `x` holds 512 real samples,
-/// viewed as 256 complex pairs; on return bin 0 is `(DC, Nyquist)` and bins 1…255 are the
-/// positive-frequency bins.
-#[inline(never)]
-pub fn rfft_512(x: &mut [f32; N]) -> &mut [Complex32; N / 2] {
-    let z: &mut [Complex32; N / 2] = bytemuck::cast_mut(x);
-    dif_256(z);
-    for (i, &j) in DIGIT_REVERSE_256.iter().enumerate() {
-        let j = usize::from(j);
-        if j > i {
-            z.swap(i, j);
-        }
-    }
-    // z = FFT₂₅₆ of the packed pairs. X[k] = E + W₅₁₂ᵏ·O and X[256−k] = conj(E − W₅₁₂ᵏ·O) with
-    // E = (z[k] + z̄[256−k]) / 2 and O = −j (z[k] − z̄[256−k]) / 2.
-    let z0 = z[0];
-    z[0] = Complex32::new(z0.re + z0.im, z0.re - z0.im);
-    let (lo, hi) = z.split_at_mut(128);
-    // hi[0] is bin 128; hi[128 − k] is bin 256 − k.
-    for (k, (xk, w)) in lo.iter_mut().zip(TWIDDLES.iter()).enumerate().skip(1) {
-        let xm = &mut hi[128 - k];
-        let (a, b) = (*xk, xm.conj());
-        let e = (a + b) * 0.5;
-        let o = Complex32::new(a.im - b.im, b.re - a.re) * 0.5;
-        let wo = mul(o, *w);
-        *xk = e + wo;
-        *xm = (e - wo).conj();
-    }
-    hi[0] = hi[0].conj();
-    z
-}
-
 /// Bins `first .. first + count` of the 512-point real FFT of `x` (1 ≤ `first`,
 /// `first + count` ≤ 257: bin 256 is the Nyquist bin), passed to `bin` in order; `x` is left
 /// holding the scrambled 256-point transform of its pairs.
@@ -262,7 +230,9 @@ pub fn rfft_512_bins(x: &mut [f32; N], first: usize, count: usize, mut bin: impl
     dif_256(z);
     let z = &*z;
     let end = (first + count).min(N / 2 + 1);
-    // At k = 256 the same formula gives the Nyquist bin (z[0] with itself, W = −1).
+    // X[k] = E + W₅₁₂ᵏ·O with E = (z[k] + z̄[256−k]) / 2 and O = −j (z[k] − z̄[256−k]) / 2
+    // (z = FFT₂₅₆ of the packed pairs). At k = 256 the same formula gives the Nyquist bin
+    // (z[0] with itself, W = −1).
     for (k, w) in TWIDDLES.iter().enumerate().take(end).skip(first) {
         let a = z[usize::from(DIGIT_REVERSE_256[k & (N / 2 - 1)])];
         let b = z[usize::from(DIGIT_REVERSE_256[(N / 2 - k) & (N / 2 - 1)])].conj();
@@ -290,6 +260,15 @@ mod tests {
             ((s >> 40) as f64 / (1u64 << 24) as f64) * 2.0 - 1.0
         };
         (0..n).map(|_| Complex64::new(next(), next())).collect()
+    }
+
+    /// `x` rounded to f32.
+    fn to_f32(x: &[Complex64]) -> [Complex32; N] {
+        let mut b = [Complex32::new(0.0, 0.0); N];
+        for (b, v) in b.iter_mut().zip(x) {
+            *b = Complex32::new(v.re as f32, v.im as f32);
+        }
+        b
     }
 
     /// Largest |error| relative to the rms of the reference spectrum.
@@ -333,10 +312,7 @@ mod tests {
         for seed in 1..4 {
             let x = noise(N, seed);
             let want = reference(&x);
-            let mut buf = [Complex32::new(0.0, 0.0); N];
-            for (b, v) in buf.iter_mut().zip(&x) {
-                *b = Complex32::new(v.re as f32, v.im as f32);
-            }
+            let mut buf = to_f32(&x);
             dif_512(&mut buf);
             let natural: Vec<Complex32> = (0..N).map(|k| buf[scrambled_position(k)]).collect();
             let e = rel_err(&natural, &want);
@@ -359,51 +335,46 @@ mod tests {
         }
     }
 
+    /// Bins `first .. first + count` of `rfft_512_bins` of the real samples `x`.
+    fn bins(x: &[f32], first: usize, count: usize) -> Vec<Complex32> {
+        let mut buf = [0.0f32; N];
+        buf.copy_from_slice(x);
+        let mut got = Vec::new();
+        rfft_512_bins(&mut buf, first, count, |c| got.push(c));
+        assert_eq!(got.len(), count);
+        got
+    }
+
     #[test]
-    fn rfft_512_matches_rustfft_and_microfft_packing() {
+    fn rfft_512_bins_match_rustfft_and_microfft() {
         for seed in 7..10 {
             let x: Vec<f64> = noise(N / 2, seed).iter().flat_map(|c| [c.re, c.im]).collect();
             let want = reference(&x.iter().map(|&v| Complex64::new(v, 0.0)).collect::<Vec<_>>());
-            let mut buf = [0.0f32; N];
-            for (b, &v) in buf.iter_mut().zip(&x) {
-                *b = v as f32;
-            }
-            let mut micro = buf;
-            let got = *rfft_512(&mut buf);
-            // Bin 0 packs DC and Nyquist, both real.
+            let x32: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+            // Bins 1 … 256 (256: Nyquist, real).
+            let got = bins(&x32, 1, N / 2);
+            let e = rel_err(&got, &want[1..=N / 2]);
+            assert!(e < 2e-6, "seed {seed}: relative error {e}");
+            // microfft's rfft_512, which the spatial path used: the same bins but for rounding
+            // (its bin 0 packs DC and Nyquist).
+            let mut micro = [0.0f32; N];
+            micro.copy_from_slice(&x32);
+            let m = microfft::real::rfft_512(&mut micro);
             let mut expect = want[..N / 2].to_vec();
             expect[0] = Complex64::new(want[0].re, want[N / 2].re);
-            let e = rel_err(&got, &expect);
-            assert!(e < 2e-6, "seed {seed}: relative error {e}");
-            let m = microfft::real::rfft_512(&mut micro);
             let e = rel_err(m, &expect);
             assert!(e < 2e-6, "microfft, seed {seed}: relative error {e}");
+            assert!((got[N / 2 - 1].re - m[0].im).abs() <= 1e-5 * m[0].im.abs().max(1.0));
         }
     }
 
     #[test]
-    fn rfft_512_bins_are_the_band_of_rfft_512() {
+    fn a_band_of_rfft_512_bins_is_the_same_bins_of_the_whole() {
         let x: Vec<f32> =
             noise(N / 2, 21).iter().flat_map(|c| [c.re as f32, c.im as f32]).collect();
-        let mut full = [0.0f32; N];
-        full.copy_from_slice(&x);
-        let want = *rfft_512(&mut full);
-        // Bin 256 (Nyquist) is the imaginary part of rfft_512's packed bin 0.
-        let nyquist = Complex32::new(want[0].im, 0.0);
-        for (first, count) in [(1, 256), (5, 124), (100, 157), (128, 1), (255, 2)] {
-            let mut buf = [0.0f32; N];
-            buf.copy_from_slice(&x);
-            let mut got = Vec::new();
-            rfft_512_bins(&mut buf, first, count, |c| got.push(c));
-            assert_eq!(got.len(), count);
-            for (i, g) in got.iter().enumerate() {
-                let w = if first + i == N / 2 { nyquist } else { want[first + i] };
-                assert!(
-                    (*g - w).norm() <= 1e-5 * (1.0 + w.norm()),
-                    "bin {}: {g} vs {w}",
-                    first + i
-                );
-            }
+        let whole = bins(&x, 1, N / 2);
+        for (first, count) in [(5, 124), (100, 157), (128, 1), (255, 2)] {
+            assert_eq!(bins(&x, first, count), whole[first - 1..first - 1 + count]);
         }
     }
 
@@ -411,14 +382,7 @@ mod tests {
     fn dif_then_dit_is_a_circular_correlation() {
         // conj(DIT(conj(DIF y) · DIF r)) / N = Σₙ y[n + m] r̄[n]: the beacon's use.
         let (y, r) = (noise(N, 11), noise(N, 12));
-        let to32 = |v: &[Complex64]| {
-            let mut b = [Complex32::new(0.0, 0.0); N];
-            for (b, v) in b.iter_mut().zip(v) {
-                *b = Complex32::new(v.re as f32, v.im as f32);
-            }
-            b
-        };
-        let (mut yb, mut rb) = (to32(&y), to32(&r));
+        let (mut yb, mut rb) = (to_f32(&y), to_f32(&r));
         dif_512(&mut yb);
         dif_512(&mut rb);
         for (a, b) in yb.iter_mut().zip(&rb) {
