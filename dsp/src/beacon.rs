@@ -142,15 +142,7 @@ pub fn waveform_at(t: f64) -> f64 {
     env * libm::cos(phase)
 }
 
-/// [`waveform_at`] at whole input samples, from tables of its pulse (sin² at the 48 sample
-/// offsets within a chip) and its carrier (cos at the 8 phases of 18 kHz at 48 kHz) built at
-/// compile time: within 10⁻¹⁵ of `waveform_at` (peak 1), two multiplications and an addition
-/// per sample instead of software sines (≈ 10 k instructions a sample on the Cortex-M4F, which
-/// made [`Detector::configure`] take about 10 s on the chip), and no f64 trigonometry in the
-/// image.
-struct SampledWaveform;
-
-/// sin²(π u / PULSE_SAMPLES), u = 0 .. PULSE_SAMPLES.
+/// sin²(π u / PULSE_SAMPLES), u = 0 .. PULSE_SAMPLES: the chip pulse at whole samples.
 static PULSE: [f64; PULSE_SAMPLES] = {
     let mut t = [0.0; PULSE_SAMPLES];
     let mut u = 0;
@@ -162,7 +154,8 @@ static PULSE: [f64; PULSE_SAMPLES] = {
     t
 };
 
-/// cos(3π/4 · r), r = 0 .. 8 (the argument reduced to [−π, π]).
+/// cos(3π/4 · r), r = 0 .. 8 (the argument reduced to [−π, π]): the 18 kHz carrier at whole
+/// 48 kHz samples.
 static CARRIER: [f64; 8] = {
     let mut t = [0.0; 8];
     let mut r = 0;
@@ -175,25 +168,26 @@ static CARRIER: [f64; 8] = {
     t
 };
 
-impl SampledWaveform {
-    /// `waveform_at(t as f64)`, within 10⁻¹⁵.
-    fn at(t: usize) -> f64 {
-        if t == 0 || t >= LEN {
-            return 0.0;
-        }
-        let hi = t / CHIP_SAMPLES;
-        let mut env = 0.0;
-        for k in [hi.wrapping_sub(1), hi] {
-            if k < CHIPS {
-                let u = t - CHIP_SAMPLES * k;
-                if u < PULSE_SAMPLES {
-                    let p = PULSE[u];
-                    env += if CHIP_TABLE[k] > 0 { p } else { -p };
-                }
+/// `waveform_at(t as f64)` at whole input samples, within 10⁻¹⁵ (peak 1), from [`PULSE`] and
+/// [`CARRIER`], built at compile time: two multiplications and an addition per sample instead
+/// of software sines (≈ 10 k instructions a sample on the Cortex-M4F, which made
+/// [`Detector::configure`] take about 10 s on the chip), and no f64 trigonometry in the image.
+fn waveform_at_sample(t: usize) -> f64 {
+    if t == 0 || t >= LEN {
+        return 0.0;
+    }
+    let hi = t / CHIP_SAMPLES;
+    let mut env = 0.0;
+    for k in [hi.wrapping_sub(1), hi] {
+        if k < CHIPS {
+            let u = t - CHIP_SAMPLES * k;
+            if u < PULSE_SAMPLES {
+                let p = PULSE[u];
+                env += if CHIP_TABLE[k] > 0 { p } else { -p };
             }
         }
-        env * CARRIER[t % 8]
     }
+    env * CARRIER[t % 8]
 }
 
 /// One detected emission.
@@ -416,14 +410,14 @@ impl Detector {
         }
         // The template and its offset copies: the filter over the waveform delayed by d. The
         // waveform is read at whole input samples only, from its pulse and carrier tables
-        // (`SampledWaveform`: `waveform_at` without a software sine per sample).
+        // (`waveform_at_sample`: `waveform_at` without a software sine per sample).
         let (taps_re, taps_im) = (self.taps_re, self.taps_im);
         let filtered = |d: isize, m: isize| -> Complex32 {
             let mut acc = ZERO;
             for k in 1..TAPS {
                 let t = DECIMATION as isize * m - k as isize - d;
                 if t > 0 && t < LEN as isize {
-                    let x = SampledWaveform::at(t as usize) as f32;
+                    let x = waveform_at_sample(t as usize) as f32;
                     let (re, im) = if k < HALF {
                         (taps_re[k], taps_im[k])
                     } else {
@@ -692,9 +686,9 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_sampled_waveform_is_waveform_at() {
+    fn waveform_at_sample_is_waveform_at() {
         for t in 0..LEN + 30 {
-            let (got, want) = (SampledWaveform::at(t), waveform_at(t as f64));
+            let (got, want) = (waveform_at_sample(t), waveform_at(t as f64));
             assert!((got - want).abs() < 1e-15, "t = {t}: {got} vs {want}");
         }
     }
