@@ -17,6 +17,8 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
+use crate::site::Room;
+
 /// Board sample index (input rate, f64 for fractions) → common time, s. Supplied by the clock
 /// model (t = a_p + b_p · n); any `Fn(f64) -> f64` is one.
 pub trait ClockMap {
@@ -307,13 +309,18 @@ pub const DELAYS_OVERSAMPLE: usize = 8;
 /// pair's correlation at once (`pairs`: array p's centre and its correlation against the array
 /// at `q`; `c` the speed of sound, m/s): the sum of the correlations at the point's delays,
 /// less a quadratic prior on the distance from `near` (one pair's full peak at
-/// [`DELAYS_SEARCH_PRIOR_M`]).
+/// [`DELAYS_SEARCH_PRIOR_M`]). Within `room` only, when the site gives one: a wall's image of
+/// the drone is a coherent second source whose range differences fit the pairs nearly as
+/// well as the drone's, and it lies behind the wall.
 pub fn joint_search(
     near: [f64; 3],
     pairs: &[([f64; 3], PairCorrelation)],
     q: [f64; 3],
     c: f64,
+    room: Option<&Room>,
 ) -> [f64; 3] {
+    let inside =
+        |x: [f64; 3]| room.is_none_or(|r| (0..3).all(|i| (r.min[i]..=r.max[i]).contains(&x[i])));
     let n = (DELAYS_SEARCH_HALF_M / DELAYS_SEARCH_STEP_M).round() as i32;
     let nz = (DELAYS_SEARCH_HALF_Z_M / DELAYS_SEARCH_STEP_Z_M).round() as i32;
     let dist = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt();
@@ -326,6 +333,9 @@ pub fn joint_search(
                     near[1] + f64::from(j) * DELAYS_SEARCH_STEP_M,
                     near[2] + f64::from(k) * DELAYS_SEARCH_STEP_Z_M,
                 ];
+                if !inside(x) {
+                    continue;
+                }
                 let prior = (dist(x, near) / DELAYS_SEARCH_PRIOR_M).powi(2);
                 let dq = dist(x, q);
                 let score =
@@ -742,7 +752,7 @@ mod tests {
             .count();
         assert!(wrong >= 1, "the track's error should fool a pair on its own");
         // Together they find the drone's peak in every pair.
-        let at = joint_search(near, &pairs, q, c);
+        let at = joint_search(near, &pairs, q, c, None);
         for (p, corr) in &pairs {
             let predicted = (dist(at, *p) - dist(at, q)) / c;
             let d = corr.refine(predicted, DELAYS_REFINE_S).unwrap();

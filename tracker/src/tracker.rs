@@ -791,7 +791,11 @@ impl Tracker {
         // The drone's comb repeats every 1/BPF (≈ 1 m of range difference), so one pair alone
         // cannot tell its peak from the next; the point near the track that every pair's
         // correlation supports at once can.
-        let at = if pairs.len() >= 2 { joint_search(then, &pairs, aq, c) } else { then };
+        let at = if pairs.len() >= 2 {
+            joint_search(then, &pairs, aq, c, self.site.room.as_ref())
+        } else {
+            then
+        };
         let rd_at = |a: [f64; 3]| {
             let d = |b: [f64; 3]| (0..3).map(|i| (at[i] - b[i]).powi(2)).sum::<f64>().sqrt();
             (d(a) - d(aq)) / c

@@ -50,6 +50,13 @@ pub struct AimConfig {
     /// Probability that an inter-array delay is a wrong correlation peak (uniform over the
     /// window it was searched in).
     pub range_difference_outlier_probability: f64,
+    /// A range difference within this of the prediction is never gated, however sure the
+    /// hypothesis is of itself, m: bearings with a slowly varying bias (reflections) make a
+    /// hypothesis believe itself to centimetres while it sits decimetres off, and a
+    /// Mahalanobis gate alone then refuses the range differences that would bring it back.
+    /// A wrong correlation peak is a whole period of the comb away (≈ 1 m of range difference
+    /// at 330 Hz), so well beyond this.
+    pub range_difference_gate_floor_m: f64,
     /// White-acceleration density while moving along the class's axes, m²/s³.
     pub q_moving: f64,
     /// White-acceleration density otherwise, m²/s³.
@@ -70,6 +77,13 @@ pub struct AimConfig {
     /// hover must not hold the track back against them (tuned on the distributed tuning seeds:
     /// zigzag20 0.43 → 0.25 m with the span fix; BENCHMARKS.md), m/s.
     pub pseudo_sigma_ranged: f64,
+    /// Every bearing's noise is multiplied by this while range differences come in (within
+    /// the last [`RANGED_FOR_S`]): bearings carry biases that change slowly (reflections,
+    /// the zenith bias), so ten frames a second from each array are not ten independent
+    /// measurements, and without it they hold the track off along the direction the range
+    /// differences see least (tuned on the warehouse and
+    /// distributed tuning seeds, BENCHMARKS.md "Several arrays, session 15").
+    pub bearing_sigma_ranged_scale: f64,
     /// Vertical-velocity noise of the hold-altitude pseudo-measurement outside vertical
     /// motion, m/s (a multirotor's altitude controller holds height to a few cm/s).
     pub hold_altitude_sigma: f64,
@@ -135,6 +149,7 @@ impl Default for AimConfig {
             other_gate: 4.0,
             other_outlier_probability: 0.05,
             range_difference_outlier_probability: 0.1,
+            range_difference_gate_floor_m: 0.5,
             q_moving: 0.6,
             q_still: 0.02,
             q_cruise: 0.02,
@@ -143,6 +158,7 @@ impl Default for AimConfig {
             zenith_bias_tau_s: 20.0,
             pseudo_sigma: 0.1,
             pseudo_sigma_ranged: 0.5,
+            bearing_sigma_ranged_scale: 2.0,
             hold_altitude_sigma: 0.02,
             q_hold_altitude: 0.001,
             leg_headings: 8,
@@ -343,6 +359,62 @@ impl AimFilter {
         self.components = split;
     }
 
+    /// Updates one hypothesis with the other arrays' bearings and the range differences of
+    /// `step`, the bearings' noise multiplied by `bearing_scale`; returns their log-likelihood.
+    fn update_other_arrays(c: &AimConfig, f: &mut Ekf, step: &Step, bearing_scale: f64) -> f64 {
+        let mut ll = 0.0;
+        for (array, b) in &step.others {
+            let saz = bearing_scale * c.other_azimuth_sigma / b.zenith_rad.sin().max(0.05);
+            let szen = bearing_scale
+                * c.other_zenith_sigma.max(c.zenith_sin_sigma / b.zenith_rad.cos().max(0.02));
+            ll += f
+                .update_bearing_other(
+                    array,
+                    (b.azimuth_rad, b.zenith_rad),
+                    (saz, szen),
+                    step.t - b.t,
+                    (c.other_gate, c.other_outlier_probability),
+                )
+                .unwrap_or(0.0);
+        }
+        for rd in &step.range_differences {
+            ll += f
+                .update_range_difference(
+                    rd.p,
+                    rd.q,
+                    rd.range_difference_m,
+                    rd.sigma_m,
+                    step.t - rd.t,
+                    (
+                        c.other_gate,
+                        c.range_difference_outlier_probability,
+                        rd.span_m,
+                        c.range_difference_gate_floor_m,
+                    ),
+                )
+                .unwrap_or(0.0);
+        }
+        ll
+    }
+
+    /// Drops hypotheses far less likely than the best (and beyond the most kept), then
+    /// normalises the weights.
+    fn normalise_and_prune(&mut self) {
+        let c = &self.config;
+        let best = self.components.iter().map(|(lw, _)| *lw).fold(f64::NEG_INFINITY, f64::max);
+        let keep = c.prune_ratio.ln();
+        self.components.retain(|(lw, _)| *lw - best >= keep);
+        if self.components.len() > c.max_hypotheses {
+            self.components.sort_by(|a, b| b.0.total_cmp(&a.0));
+            self.components.truncate(c.max_hypotheses);
+        }
+        let total =
+            self.components.iter().map(|(lw, _)| (lw - best).exp()).sum::<f64>().ln() + best;
+        for (lw, _) in self.components.iter_mut() {
+            *lw -= total;
+        }
+    }
+
     fn estimate(&self) -> Estimate {
         let ws: Vec<f64> = self.components.iter().map(|(lw, _)| lw.exp()).collect();
         let total: f64 = ws.iter().sum();
@@ -375,15 +447,31 @@ impl Filter for AimFilter {
             if !self.initialise(step) {
                 return None;
             }
+            // The hypotheses lie along the tracked array's ray; the other arrays' bearings and
+            // the range differences of this step already say where along it.
+            let c = self.config.clone();
+            for (lw, f) in self.components.iter_mut() {
+                *lw += Self::update_other_arrays(&c, f, step, 1.0);
+            }
+            self.normalise_and_prune();
             return Some(self.estimate());
         }
         let c = self.config.clone();
+        if !step.range_differences.is_empty() {
+            self.last_ranged_t = Some(step.t);
+        }
+        let ranged = self.last_ranged_t.is_some_and(|t| step.t - t <= RANGED_FOR_S);
         if self.last_class == Some(step.motion) {
             self.since_class_change_s += step.dt;
         } else {
             let from_rest = matches!(self.last_class, Some(MotionClass::Hover | MotionClass::Yaw));
             if from_rest && step.motion == MotionClass::Horizontal {
-                self.respread_ranges(step);
+                // Ranges along the tracked array's ray stand for the range one array cannot
+                // see; range differences observe it, and spreading hypotheses along the ray
+                // then only offers them a wrong correlation peak to lock onto.
+                if !ranged {
+                    self.respread_ranges(step);
+                }
                 self.split_headings();
             }
             self.since_class_change_s = 0.0;
@@ -396,6 +484,7 @@ impl Filter for AimFilter {
             MotionClass::Vertical => [c.q_still, c.q_still, c.q_moving],
             MotionClass::Hover | MotionClass::Yaw => [c.q_still, c.q_still, c.q_hold_altitude],
         };
+        let scale = if ranged { c.bearing_sigma_ranged_scale } else { 1.0 };
         let bearing = match (step.los, step.doa) {
             (true, Some(d)) => {
                 let sigma = d.erratic_rad.max(c.bearing_sigma_floor);
@@ -403,24 +492,23 @@ impl Filter for AimFilter {
                     .erratic_rad
                     .max(c.zenith_sigma_floor)
                     .max(c.zenith_sin_sigma / d.zenith_rad.cos().max(0.02));
-                Some((d.azimuth_rad, d.zenith_rad, sigma / d.zenith_rad.sin().max(0.05), sigma_zen))
+                Some((
+                    d.azimuth_rad,
+                    d.zenith_rad,
+                    scale * sigma / d.zenith_rad.sin().max(0.05),
+                    scale * sigma_zen,
+                ))
             }
             _ => None,
         };
         let nlos_azimuth = match (step.los, step.doa) {
             (false, Some(d)) => Some((
                 d.azimuth_rad,
-                d.erratic_rad.max(c.nlos_azimuth_sigma) / d.zenith_rad.sin().max(0.05),
+                scale * d.erratic_rad.max(c.nlos_azimuth_sigma) / d.zenith_rad.sin().max(0.05),
             )),
             _ => None,
         };
-        if !step.range_differences.is_empty() {
-            self.last_ranged_t = Some(step.t);
-        }
-        let pseudo_sigma = match self.last_ranged_t {
-            Some(t) if step.t - t <= RANGED_FOR_S => c.pseudo_sigma_ranged,
-            _ => c.pseudo_sigma,
-        };
+        let pseudo_sigma = if ranged { c.pseudo_sigma_ranged } else { c.pseudo_sigma };
         let s = step.speed;
         let moving = matches!(step.motion, MotionClass::Horizontal | MotionClass::Vertical);
         let q_rest = if manoeuvre { c.q_rest_manoeuvre } else { c.q_rest };
@@ -453,32 +541,7 @@ impl Filter for AimFilter {
                     ll += l;
                 }
             }
-            for (array, b) in &step.others {
-                let saz = c.other_azimuth_sigma / b.zenith_rad.sin().max(0.05);
-                let szen =
-                    c.other_zenith_sigma.max(c.zenith_sin_sigma / b.zenith_rad.cos().max(0.02));
-                ll += f
-                    .update_bearing_other(
-                        array,
-                        (b.azimuth_rad, b.zenith_rad),
-                        (saz, szen),
-                        step.t - b.t,
-                        (c.other_gate, c.other_outlier_probability),
-                    )
-                    .unwrap_or(0.0);
-            }
-            for rd in &step.range_differences {
-                ll += f
-                    .update_range_difference(
-                        rd.p,
-                        rd.q,
-                        rd.range_difference_m,
-                        rd.sigma_m,
-                        step.t - rd.t,
-                        (c.other_gate, c.range_difference_outlier_probability, rd.span_m),
-                    )
-                    .unwrap_or(0.0);
-            }
+            ll += Self::update_other_arrays(&c, f, step, scale);
             if let Some((az, saz)) = nlos_azimuth {
                 let l = f.update_azimuth(step.array, az, saz).unwrap_or(0.0);
                 if moving {
@@ -526,19 +589,7 @@ impl Filter for AimFilter {
             }
             *lw += ll;
         }
-        // Normalise and prune.
-        let best = self.components.iter().map(|(lw, _)| *lw).fold(f64::NEG_INFINITY, f64::max);
-        let keep = c.prune_ratio.ln();
-        self.components.retain(|(lw, _)| *lw - best >= keep);
-        if self.components.len() > c.max_hypotheses {
-            self.components.sort_by(|a, b| b.0.total_cmp(&a.0));
-            self.components.truncate(c.max_hypotheses);
-        }
-        let total =
-            self.components.iter().map(|(lw, _)| (lw - best).exp()).sum::<f64>().ln() + best;
-        for (lw, _) in self.components.iter_mut() {
-            *lw -= total;
-        }
+        self.normalise_and_prune();
         Some(self.estimate())
     }
 }
@@ -600,6 +651,18 @@ mod tests {
         last.unwrap()
     }
 
+    /// The acoustic speed of a drone at rest.
+    fn still() -> AcousticSpeed {
+        AcousticSpeed {
+            horizontal: 0.0,
+            horizontal_sigma: 0.1,
+            vertical: 0.0,
+            vertical_sigma: 0.05,
+            horizontal_accel: 0.0,
+            accelerating: false,
+        }
+    }
+
     #[test]
     fn a_leg_from_rest_finds_its_heading_whichever_it_is() {
         // Eight legs around the compass, each started from a hover whose range the bearings
@@ -640,14 +703,7 @@ mod tests {
         cov[(LN_REST, LN_REST)] = 1e-4;
         filter.components =
             vec![(0.0, Ekf::new([here[0], here[1], here[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01], cov))];
-        let speed = AcousticSpeed {
-            horizontal: 0.0,
-            horizontal_sigma: 0.1,
-            vertical: 0.0,
-            vertical_sigma: 0.05,
-            horizontal_accel: 0.0,
-            accelerating: false,
-        };
+        let speed = still();
         for (k, motion) in [MotionClass::Hover, MotionClass::Hover, MotionClass::Horizontal]
             .into_iter()
             .enumerate()
@@ -684,5 +740,57 @@ mod tests {
             filter.components.iter().all(|(lw, _)| *lw >= least - 0.5),
             "a range lost its floor"
         );
+    }
+
+    #[test]
+    fn the_first_step_places_the_hypotheses_where_the_other_arrays_point() {
+        // The tracked array's first bearing leaves the range open (hypotheses from 1 m to the
+        // room's end along its ray); two other arrays' bearings of the same step already cross
+        // it at the drone. Oracle: the drone's position, against the mixture's mean.
+        let array = ArrayPose::new(1, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let a2 = ArrayPose::new(2, [12.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let a3 = ArrayPose::new(3, [0.0, 12.0, 0.0], 0.0, 0.0, 0.0);
+        let drone = [2.5, 2.0, 1.0];
+        let bearing_of = |a: &ArrayPose| {
+            let (az, zen) = crate::observation::angles_of([
+                drone[0] - a.position[0],
+                drone[1] - a.position[1],
+                drone[2] - a.position[2],
+            ]);
+            crate::observation::Bearing {
+                t: 0.0,
+                array_id: a.id,
+                azimuth_rad: az,
+                zenith_rad: zen,
+                residual: 0.0,
+                quality: 2.0,
+            }
+        };
+        let speed = still();
+        let first = |others: Vec<(&ArrayPose, crate::observation::Bearing)>| {
+            let mut filter = AimFilter::new(AimConfig::default());
+            let step = Step {
+                others,
+                range_differences: Vec::new(),
+                t: 0.0,
+                dt: 0.1,
+                array: &array,
+                doa: Some(doa(0.0, drone, &mut crate::testutil::Rng::new(5))),
+                los: true,
+                motion: MotionClass::Hover,
+                speed,
+                room: None,
+                cruise_speeds: None,
+                wake_splits: None,
+                doppler: Vec::new(),
+                speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
+            };
+            let p = filter.step(&step).unwrap().position;
+            crate::observation::norm([p[0] - drone[0], p[1] - drone[1], p[2] - drone[2]])
+        };
+        let alone = first(Vec::new());
+        let crossed = first(vec![(&a2, bearing_of(&a2)), (&a3, bearing_of(&a3))]);
+        assert!(alone > 1.0, "alone the first estimate is the mixture along the ray: {alone} m");
+        assert!(crossed < 0.3, "the crossing rays place it: {crossed} m off");
     }
 }

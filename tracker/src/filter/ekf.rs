@@ -318,7 +318,7 @@ impl Ekf {
         range_difference_m: f64,
         sigma_m: f64,
         lag_s: f64,
-        (gate, outlier, span_m): (f64, f64, f64),
+        (gate, outlier, span_m, gate_floor_m): (f64, f64, f64, f64),
     ) -> Option<f64> {
         let (x, v) = (self.position(), self.velocity());
         let then = [0, 1, 2].map(|i| x[i] - v[i] * lag_s);
@@ -335,6 +335,9 @@ impl Ekf {
             h[(0, 3 + i)] = -lag_s * g;
         }
         let r = diagonal([sigma_m * sigma_m]);
+        // The gate is at least `gate_floor_m` wide, whatever the filter believes.
+        let s = (h * self.p * h.transpose())[(0, 0)] + sigma_m * sigma_m;
+        let gate = gate.max(gate_floor_m / s.max(1e-12).sqrt());
         let (maha, det) =
             self.innovate(&[range_difference_m], &[rp - rq], &h, &r, Residual::Linear, gate)?;
         let outlier = outlier.clamp(1e-9, 1.0);
@@ -549,7 +552,7 @@ mod tests {
             d(p) - d(q)
         };
         let z = rd([5.0 - 1.5 * lag, 4.0, 2.0]);
-        let gate = (4.0, 0.05, 0.5);
+        let gate = (4.0, 0.05, 0.5, 0.0);
         let moved = |f: &Ekf| (0..3).map(|i| (f.x[i] - start[i]).powi(2)).sum::<f64>().sqrt();
         let mut f = Ekf::new(start, cov);
         let ll = f.update_range_difference(p, q, z, 0.01, lag, gate).unwrap();
@@ -564,6 +567,38 @@ mod tests {
         // (the Gaussian 5σ out adds a few parts in a million)
         let floor = (0.05 / (2.0 * 0.5f64)).ln();
         assert!((gated - floor).abs() < 1e-4 && gated < ll, "{gated} against {ll}, floor {floor}");
+    }
+
+    #[test]
+    fn a_range_difference_within_the_gate_floor_updates_an_overconfident_state() {
+        // The state believes itself to 1 cm; the range difference says it is 0.2 m off
+        // (20σ). A Mahalanobis gate alone refuses it; a 0.3 m floor lets it pull the state.
+        // Oracle: the generating range difference.
+        let (p, q) = ([10.0, 0.0, 3.0], [0.0, 0.0, 3.0]);
+        let start = [4.0, 2.0, 1.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01];
+        let cov = diagonal([1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6]);
+        let d =
+            |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt();
+        let rd = |x: [f64; 3]| d(x, p) - d(x, q);
+        let z = rd([start[0], start[1], start[2]]) + 0.2;
+        let mut f = Ekf::new(start, cov);
+        f.update_range_difference(p, q, z, 0.01, 0.0, (4.0, 0.05, 1.2, 0.0)).unwrap();
+        assert_eq!(f.x, start);
+        let mut g = Ekf::new(start, cov);
+        g.update_range_difference(p, q, z, 0.01, 0.0, (4.0, 0.05, 1.2, 0.3)).unwrap();
+        let now = [g.x[0], g.x[1], g.x[2]];
+        // The linear Kalman step: the range difference moves by hPhᵀ/(hPhᵀ + r) of the
+        // innovation, h = u_p − u_q (unit vectors from the arrays), P = 1e-4 I, r = 1e-4.
+        let x0 = [start[0], start[1], start[2]];
+        let unit = |a: [f64; 3]| {
+            let n = d(x0, a);
+            [(x0[0] - a[0]) / n, (x0[1] - a[1]) / n, (x0[2] - a[2]) / n]
+        };
+        let h: Vec<f64> = (0..3).map(|i| unit(p)[i] - unit(q)[i]).collect();
+        let hph = 1e-4 * h.iter().map(|v| v * v).sum::<f64>();
+        let expected = rd(x0) + 0.2 * hph / (hph + 1e-4);
+        assert!((rd(now) - expected).abs() < 0.01, "{} against {expected}", rd(now));
+        assert!(rd(now) - rd(x0) > 0.05, "moved {} m", rd(now) - rd(x0));
     }
 
     #[test]
