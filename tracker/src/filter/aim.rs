@@ -623,22 +623,8 @@ mod tests {
                 horizontal_accel: 0.0,
                 accelerating: false,
             };
-            let step = Step {
-                others: Vec::new(),
-                range_differences: Vec::new(),
-                t,
-                dt,
-                array: &array,
-                doa: Some(doa(t, pos, &mut rng)),
-                los: true,
-                motion: if moving { MotionClass::Horizontal } else { MotionClass::Hover },
-                speed,
-                room: None,
-                cruise_speeds: None,
-                wake_splits: None,
-                doppler: Vec::new(),
-                speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
-            };
+            let motion = if moving { MotionClass::Horizontal } else { MotionClass::Hover };
+            let step = seen_step(&array, t, dt, doa(t, pos, &mut rng), motion, speed);
             if let Some(est) = filter.step(&step) {
                 let err = crate::observation::norm([
                     est.position[0] - pos[0],
@@ -649,6 +635,34 @@ mod tests {
             }
         }
         last.unwrap()
+    }
+
+    /// One step of `array` alone, in line of sight, with `doa` (no other arrays, no range
+    /// differences, no room, no speed or Doppler cues but `speed`).
+    fn seen_step(
+        array: &ArrayPose,
+        t: f64,
+        dt: f64,
+        doa: crate::doa::DoaState,
+        motion: MotionClass,
+        speed: AcousticSpeed,
+    ) -> Step<'_> {
+        Step {
+            others: Vec::new(),
+            range_differences: Vec::new(),
+            t,
+            dt,
+            array,
+            doa: Some(doa),
+            los: true,
+            motion,
+            speed,
+            room: None,
+            cruise_speeds: None,
+            wake_splits: None,
+            doppler: Vec::new(),
+            speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
+        }
     }
 
     /// The acoustic speed of a drone at rest.
@@ -708,22 +722,8 @@ mod tests {
             .into_iter()
             .enumerate()
         {
-            let step = Step {
-                others: Vec::new(),
-                range_differences: Vec::new(),
-                t: k as f64 * 0.1,
-                dt: 0.1,
-                array: &array,
-                doa: Some(doa(k as f64 * 0.1, truth, &mut rng)),
-                los: true,
-                motion,
-                speed,
-                room: None,
-                cruise_speeds: None,
-                wake_splits: None,
-                doppler: Vec::new(),
-                speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
-            };
+            let t = k as f64 * 0.1;
+            let step = seen_step(&array, t, 0.1, doa(t, truth, &mut rng), motion, speed);
             filter.step(&step);
         }
         assert_eq!(filter.hypotheses(), c.hypotheses * c.leg_headings);
@@ -766,25 +766,11 @@ mod tests {
                 quality: 2.0,
             }
         };
-        let speed = still();
         let first = |others: Vec<(&ArrayPose, crate::observation::Bearing)>| {
             let mut filter = AimFilter::new(AimConfig::default());
-            let step = Step {
-                others,
-                range_differences: Vec::new(),
-                t: 0.0,
-                dt: 0.1,
-                array: &array,
-                doa: Some(doa(0.0, drone, &mut crate::testutil::Rng::new(5))),
-                los: true,
-                motion: MotionClass::Hover,
-                speed,
-                room: None,
-                cruise_speeds: None,
-                wake_splits: None,
-                doppler: Vec::new(),
-                speed_of_sound_mps: crate::doppler::DEFAULT_SPEED_OF_SOUND_MPS,
-            };
+            let first = doa(0.0, drone, &mut crate::testutil::Rng::new(5));
+            let step =
+                Step { others, ..seen_step(&array, 0.0, 0.1, first, MotionClass::Hover, still()) };
             let p = filter.step(&step).unwrap().position;
             crate::observation::norm([p[0] - drone[0], p[1] - drone[1], p[2] - drone[2]])
         };
