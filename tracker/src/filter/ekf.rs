@@ -308,8 +308,9 @@ impl Ekf {
     /// (world m), ± `sigma_m`, `lag_s` before the state's time (predicted from
     /// `x − v·lag_s`). Returns the log-likelihood under a Gaussian with outliers (probability
     /// `outlier` that the delay is a wrong correlation peak, uniform over ±`span_m`, the
-    /// prior window it was searched in); a delay beyond a Mahalanobis distance `gate` updates
-    /// nothing; None if the innovation covariance is singular.
+    /// prior window it was searched in); a delay beyond a Mahalanobis distance `gate` and more
+    /// than `gate_floor_m` (m) from the prediction updates nothing; None if the innovation
+    /// covariance is singular.
     #[allow(clippy::too_many_arguments)]
     pub fn update_range_difference(
         &mut self,
