@@ -14,8 +14,8 @@ fn main() -> anyhow::Result<()> {
     let a: Vec<String> = std::env::args().skip(1).collect();
     anyhow::ensure!(a.len() == 3, "usage: tune|eval|SEED,SEED,… DURATION OUTDIR");
     let seeds: Vec<u64> = match a[0].as_str() {
-        "tune" => vec![1, 2],
-        "eval" => vec![101, 102, 103],
+        "tune" => host_sim::bpf_bench::TUNING_SEEDS.to_vec(),
+        "eval" => host_sim::bpf_bench::EVALUATION_SEEDS.to_vec(),
         list => list.split(',').map(str::parse).collect::<Result<_, _>>()?,
     };
     let dur: f64 = a[1].parse()?;

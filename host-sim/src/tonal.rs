@@ -409,6 +409,77 @@ impl Hall {
     }
 }
 
+/// A hall's diffuse tail by the simulator's own late-reverberation model ([`crate::reverb`],
+/// checked against pyroomacoustics, BENCHMARKS.md "Rooms that ring"): Gaussian noise whose
+/// energy follows the image model's decay in octave bands, of a shoebox with the hall's
+/// volume (proportions 4 : 3 : 1.6) and uniform absorption for `rt60_s`.
+///
+/// Its frequency response is a real large room's above the Schroeder frequency: a random
+/// (Rayleigh) magnitude whose maxima lie about `4 / RT60` Hz apart, the same statistics at
+/// every frequency. [`Hall`]'s eight feedback combs instead make clusters of resonances
+/// every 30 Hz or so that stand 10–13 dB over the response's median (at RT60 1.6 s and
+/// 16 kHz: 621.6 and 651.6 Hz), which a rotor line wandering past is pinned to.
+pub struct DiffuseHall {
+    /// Tail impulse response, pressure re the emitted signal per sample, from emission.
+    response: Vec<f64>,
+}
+
+impl DiffuseHall {
+    /// The tail of a hall of `volume_m3` with reverberation time `rt60_s`, at `fs` (Hz); `seed`
+    /// draws the tail's noise.
+    pub fn new(rt60_s: f64, volume_m3: f64, fs: f64, seed: u64) -> Self {
+        use crate::reverb::{absorption_for_t30, tail_responses};
+        use nalgebra::Vector3;
+        let c = 343.0;
+        // 4 : 3 : 1.6 (a sports hall's shape): x = (V / 1.92)^(1/3).
+        let x = (volume_m3 / 1.92).cbrt();
+        let size_m = [1.0 * x, 0.75 * x, 0.4 * x];
+        let alpha = absorption_for_t30(size_m, rt60_s, c);
+        let room = crate::room::Room {
+            size_m,
+            absorption: [alpha; 6],
+            reflection_order: 0,
+            late_tail: true,
+        };
+        let at = Vector3::new(0.5 * size_m[0], 0.5 * size_m[1], 1.2);
+        let (first, mut tails) = tail_responses(&room, c, 0.0, fs, &[at], seed);
+        let tail = tails.pop().unwrap_or_default();
+        let mut response = vec![0.0; first + tail.len()];
+        for (r, &t) in response[first..].iter_mut().zip(&tail) {
+            *r = f64::from(t);
+        }
+        Self { response }
+    }
+
+    /// The reverberant tail of `x` (no direct sound), as long as `x`; its level is the model's,
+    /// which the caller may scale.
+    pub fn process(&self, x: &[f64]) -> Vec<f64> {
+        use rustfft::num_complex::Complex;
+        let (n, h) = (x.len(), &self.response);
+        if n == 0 || h.is_empty() {
+            return vec![0.0; n];
+        }
+        let size = (n + h.len()).next_power_of_two();
+        let mut planner = rustfft::FftPlanner::<f64>::new();
+        let (fwd, inv) = (planner.plan_fft_forward(size), planner.plan_fft_inverse(size));
+        let pad = |v: &[f64]| {
+            let mut b = vec![Complex::new(0.0, 0.0); size];
+            for (d, &s) in b.iter_mut().zip(v) {
+                d.re = s;
+            }
+            b
+        };
+        let (mut a, mut b) = (pad(x), pad(h));
+        fwd.process(&mut a);
+        fwd.process(&mut b);
+        for (p, q) in a.iter_mut().zip(&b) {
+            *p *= q;
+        }
+        inv.process(&mut a);
+        a[..n].iter().map(|v| v.re / size as f64).collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -435,5 +506,50 @@ mod tests {
         };
         let drop_db = 10.0 * (e(0.2, 0.4) / e(0.5, 0.7)).log10();
         assert!((drop_db - 18.0).abs() < 4.0, "decay {drop_db} dB over 0.3 s (RT60 1 s: 18 dB)");
+    }
+
+    /// Mean spacing (Hz) of the maxima of |H(f)|² over 500–1000 Hz, and the energy decay in
+    /// dB over 0.2–0.4 s against 0.5–0.7 s, of an impulse response at 16 kHz.
+    fn response_statistics(h: &[f64]) -> (f64, f64) {
+        use rustfft::num_complex::Complex;
+        let fs = 16_000.0;
+        let n = 1 << 18;
+        let mut b: Vec<Complex<f64>> =
+            (0..n).map(|i| Complex::new(h.get(i).copied().unwrap_or(0.0), 0.0)).collect();
+        rustfft::FftPlanner::new().plan_fft_forward(n).process(&mut b);
+        let bin = fs / n as f64;
+        let p: Vec<f64> = (0..n / 2).map(|k| b[k].norm_sqr()).collect();
+        let (lo, hi) = ((500.0 / bin) as usize, (1000.0 / bin) as usize);
+        let maxima = (lo..hi).filter(|&k| p[k] > p[k - 1] && p[k] > p[k + 1]).count();
+        let e = |a: f64, b: f64| {
+            h[(a * fs) as usize..(b * fs) as usize].iter().map(|v| v * v).sum::<f64>()
+        };
+        (500.0 / maxima as f64, 10.0 * (e(0.2, 0.4) / e(0.5, 0.7)).log10())
+    }
+
+    #[test]
+    fn a_diffuse_hall_decays_at_its_rt60_and_its_response_has_schroeders_maxima() {
+        // Schroeder and Kuttruff (1962): above the Schroeder frequency a room's |H(f)|² has
+        // maxima about 4 / T60 Hz apart on average (here 4 Hz at 1 s, 2.5 Hz at 1.6 s); the
+        // energy falls 60 dB per RT60 (18 dB over 0.3 s at 1 s). The Freeverb-style [`Hall`]
+        // fails the first: its maxima lie 8–10 Hz apart (BENCHMARKS.md, issue 19, session 16).
+        let fs = 16_000.0;
+        for (rt60, volume, seed) in [(1.0, 3000.0, 1), (1.6, 6000.0, 2)] {
+            let mut x = vec![0.0; (2.5 * fs) as usize];
+            x[0] = 1.0;
+            let h = DiffuseHall::new(rt60, volume, fs, seed).process(&x);
+            let (spacing, drop_db) = response_statistics(&h);
+            let want = 4.0 / rt60;
+            println!("RT60 {rt60} s: maxima {spacing:.2} Hz apart (Schroeder {want:.2}), decay {drop_db:.1} dB");
+            assert!((spacing / want - 1.0).abs() < 0.3, "maxima {spacing} Hz apart at RT60 {rt60}");
+            let want_db = 60.0 * 0.3 / rt60;
+            assert!((drop_db - want_db).abs() < 0.2 * want_db, "decay {drop_db} dB at RT60 {rt60}");
+            // The Freeverb-style hall of the same RT60, for contrast: resonance clusters.
+            let mut x = vec![0.0; (2.5 * fs) as usize];
+            x[0] = 1.0;
+            let (spacing, _) = response_statistics(&Hall::new(rt60, fs).process(&x));
+            println!("  Freeverb-style Hall: maxima {spacing:.2} Hz apart");
+            assert!(spacing > 1.5 * want, "Hall maxima {spacing} Hz apart at RT60 {rt60}");
+        }
     }
 }

@@ -3,14 +3,15 @@
 //! frames read through the tracker's intake. Prints one line per airframe and per non-drone
 //! source, then the totals.
 //!
-//! Seeds: `tune` = 1, 2 (used while choosing the detector's constants), `eval` = 101, 102, 103
-//! (reported). Every airframe flies in both halls at every background level (55, 62, 70 dB),
+//! Seeds: `tune` = `host_sim::bpf_bench::TUNING_SEEDS` (used while choosing the detector's
+//! constants), `eval` = `EVALUATION_SEEDS` (reported). Every airframe flies in both halls at every background level (55, 62, 70 dB),
 //! 3 m from the array for odd seeds and 5 m for even ones; every non-drone source plays at
 //! 65 dB (direct, at the array) in both halls over the 55 dB background.
 use anyhow::bail;
 
 use host_sim::bpf_bench::{
-    airframes, drone_case, negative_case, Score, BACKGROUNDS_DB, HALLS, SETTLING_FRAMES,
+    airframes, drone_case, negative_case, Score, BACKGROUNDS_DB, EVALUATION_SEEDS, HALLS,
+    SETTLING_FRAMES, TUNING_SEEDS,
 };
 use host_sim::tonal::Negative;
 
@@ -32,8 +33,8 @@ fn pct(n: usize, d: usize) -> f64 {
 /// Runs `host-sim bpf-bench`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let seeds: &[u64] = match args.seeds.as_str() {
-        "tune" => &[1, 2],
-        "eval" => &[101, 102, 103],
+        "tune" => &TUNING_SEEDS,
+        "eval" => &EVALUATION_SEEDS,
         other => bail!("--seeds must be `tune` or `eval`, not `{other}`"),
     };
     if !(args.duration.is_finite() && (2.0..=120.0).contains(&args.duration)) {
