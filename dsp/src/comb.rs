@@ -27,8 +27,8 @@
 //!    bin.
 //! 4. **Comb score.** Over harmonics `h = 1..=Config::harmonics` of the resolved fundamental:
 //!    a line is found when the largest `w` within ±r bins of `h·f` is a local maximum of at
-//!    least [`LINE_RATIO`] (r = 1 bin plus 0.2 % of the line's frequency, for rotor-speed
-//!    wander within the window). Score = Σ min(w, [`LINE_CAP`]) over the found lines;
+//!    least [`LINE_RATIO`] (r = 1 bin plus [`LINE_SEARCH`] of the line's frequency in bins, for
+//!    rotor-speed wander within the window). Score = Σ min(w, [`LINE_CAP`]) over the found lines;
 //!    harmonicity = found / expected (harmonics below 3.8 kHz); frequency = amplitude-weighted
 //!    mean of the refined `f_h / h`.
 //! 5. **Detection.** A group passes when it has at least [`MIN_LINES`] lines (or all expected,
@@ -40,8 +40,14 @@
 //!    within [`STEADY_RATIO`] of the previous one's while it is not yet reported: a source must hold a comb for three
 //!    analyses (1.02 s) before it is called a rotor; notes and vowels rarely do. A comb once
 //!    reported continues at [`HOLD_QUALITY`] of the starting quality (hysteresis), and a
-//!    reported comb missed by one analysis keeps its place in the history for the next. When no group is reported, the `Peaks` output says "no rotor
-//!    signature" and carries no BPF.
+//!    reported comb missed by one analysis keeps its place in the history for the next.
+//! 7. **Shaft combs.** Of the groups to report, one whose double or triple lies in the rotor
+//!    cluster ([`CLUSTER`]) of another reported group is a rotor's shaft comb and is left out
+//!    when that group's first line, or its own line at the multiple, is at least
+//!    [`SHAFT_DOMINANCE`] times as strong as its first line; with no such group in this
+//!    analysis but one reported in the previous, it is reported at the multiple when its own
+//!    line there is. When no group is reported, the `Peaks` output says "no rotor signature"
+//!    and carries no BPF.
 
 use crate::bpf::refine_peak;
 use crate::{Config, Peak, Peaks, MAX_HARMONICS};
@@ -54,6 +60,11 @@ pub const FLOOR_BLOCK: usize = 32;
 /// 2.5 finds the upper lines of a rotor 3–10× over a 62–70 dB background, chosen on the BPF
 /// bench's tuning seeds, BENCHMARKS.md "Session 9").
 pub const LINE_RATIO: f32 = 2.5;
+/// Search half-width for a comb's line beyond one bin, as a fraction of the line's frequency
+/// (0.4 %: with 0.2 % a rotor whose speed wanders by 1 % within seconds and jitters by 0.5 %
+/// lost its upper lines; chosen on the BPF bench's tuning seeds 1–8 among 0.2–0.6 %,
+/// BENCHMARKS.md issue 19, session 16: 0.5 % and over let music pass in over 2 % of frames).
+pub const LINE_SEARCH: f32 = 0.004;
 /// Whitened level at which a line's contribution to the score saturates.
 pub const LINE_CAP: f32 = 40.0;
 /// Fewest lines of a detected group (fewer only if fewer harmonics lie in the band).
@@ -67,6 +78,10 @@ pub const SHAFT_RATIO: f32 = 0.6;
 /// A comb's second or third harmonic this many times stronger than its first makes it the blade
 /// line ([`Spectrum::blade_line`]).
 pub const BLADE_DOMINANCE: f32 = 2.5;
+/// A passing group whose double or triple lies in another's rotor cluster is a shaft comb when
+/// that one's first line is this many times stronger than its own (shaft lines are 8–12 dB
+/// under the blade line; a blade line is 3 dB over its own second harmonic).
+pub const SHAFT_DOMINANCE: f32 = 1.0;
 /// Consecutive analyses a group must pass before it is reported (3: the comb held steady for
 /// 1.02 s; a sung note or a vowel rarely does, a rotor always).
 pub const MIN_AGE: u8 = 3;
@@ -215,7 +230,7 @@ struct Line {
 
 impl Spectrum<'_> {
     fn search_radius(&self, centre: f32) -> usize {
-        1 + (centre * 0.002) as usize
+        1 + (centre * LINE_SEARCH) as usize
     }
 
     fn line(&self, centre: f32) -> Option<Line> {
@@ -346,6 +361,7 @@ impl Spectrum<'_> {
         // fundamental) can sit in a room's interference notch 15 dB deep while its neighbours
         // do not; the comb's total level compares rotor groups with each other and over time.
         let mut power = 0.0f32;
+        let mut first = [0.0f32; 3];
         for h in 1..=harmonics.min(MAX_HARMONICS) {
             let centre = h as f32 * bin;
             if !self.in_band(centre) {
@@ -356,6 +372,9 @@ impl Spectrum<'_> {
             let (bh, ah) = refine_peak(self.mags, line.bin);
             if libm::fabsf(bh - centre) > self.search_radius(centre) as f32 + 0.5 {
                 continue;
+            }
+            if h <= first.len() {
+                first[h - 1] = self.mags[line.bin];
             }
             power += ah * ah;
             num += ah * bh / h as f32;
@@ -374,7 +393,7 @@ impl Spectrum<'_> {
         let harmonicity = found as f32 / expected.max(1) as f32;
         let quality = harmonicity * score / (score + QUALITY_SCALE);
         let passes = found >= MIN_LINES.min(expected.max(1)) && harmonicity >= MIN_HARMONICITY;
-        Group { hz, amplitude, harmonicity, score, quality, passes }
+        Group { hz, amplitude, harmonicity, score, quality, first, passes }
     }
 }
 
@@ -386,6 +405,9 @@ struct Group {
     harmonicity: f32,
     score: f32,
     quality: f32,
+    /// Magnitudes of the lines at the fundamental, its double and its triple (0 when not
+    /// found).
+    first: [f32; 3],
     /// Line count and harmonicity pass the test (quality is tested against the config).
     passes: bool,
 }
@@ -440,6 +462,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     let rate_hz_per_hz = config.bpf_max_rate_per_s * hop_s;
     // The groups entered in `next` (the same order), as they would be reported.
     let mut passing = [Peak::default(); 4];
+    let mut passing_first = [[0.0f32; 3]; 4];
     let mut n_passing = 0usize;
     for g in groups.iter() {
         let allowed = 2.0 * bin_hz + rate_hz_per_hz * g.hz;
@@ -478,6 +501,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
             harmonicity: g.harmonicity,
             quality: g.quality,
         };
+        passing_first[n_passing] = g.first;
         n_passing += 1;
     }
     // Reported: the groups that held for MIN_AGE analyses, and with them the passing groups
@@ -486,12 +510,51 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     // rotor pair whose fundamental dipped for one analysis would otherwise be missing for
     // MIN_AGE − 1 frames, and a frame with one pair of two reads as a thrust change).
     let aged = |i: usize| next.age[i] >= MIN_AGE;
-    for i in 0..n_passing {
-        let hz = passing[i].hz;
-        let near_aged = (0..n_passing)
-            .any(|j| aged(j) && libm::fabsf(passing[j].hz - hz) <= CLUSTER * passing[j].hz);
-        if (aged(i) || near_aged) && (out.count as usize) < out.peaks.len() {
-            out.peaks[out.count as usize] = passing[i];
+    let eligible = |i: usize| {
+        aged(i)
+            || (0..n_passing).any(|j| {
+                aged(j) && libm::fabsf(passing[j].hz - passing[i].hz) <= CLUSTER * passing[j].hz
+            })
+    };
+    // A shaft comb: twice or three times its frequency falls in the rotor cluster of another
+    // reported group whose first line is [`SHAFT_DOMINANCE`] times stronger (a rotor's blade
+    // line is its strongest; several rotors' shaft lines fill the gaps between blade lines,
+    // so [`Spectrum::resolve`] cannot always tell, and one rotor's blade line may sit in the
+    // room's interference notch while another's does not).
+    let shaft = |i: usize| {
+        let own = passing_first[i];
+        (0..n_passing).any(|j| {
+            let a = passing[j].hz;
+            j != i
+                && eligible(j)
+                && [2usize, 3].iter().any(|&m| {
+                    libm::fabsf(a - m as f32 * passing[i].hz) <= CLUSTER * a
+                        && (passing_first[j][0] >= SHAFT_DOMINANCE * own[0]
+                            || own[m - 1] >= SHAFT_DOMINANCE * own[0])
+                })
+        })
+    };
+    // A shaft comb whose double or triple is stronger than its first line, with no blade
+    // group passing in this analysis but one reported in the previous one there: the blade
+    // lines are that multiple.
+    let promoted = |i: usize| {
+        let own = passing_first[i];
+        [2usize, 3].into_iter().find(|&m| {
+            let b = m as f32 * passing[i].hz;
+            own[m - 1] >= SHAFT_DOMINANCE * own[0]
+                && (0..history.count).any(|k| {
+                    history.age[k] >= MIN_AGE
+                        && libm::fabsf(history.hz[k] - b) <= CLUSTER * history.hz[k]
+                })
+        })
+    };
+    for (i, &group) in passing[..n_passing].iter().enumerate() {
+        if eligible(i) && !shaft(i) && (out.count as usize) < out.peaks.len() {
+            let mut peak = group;
+            if let Some(m) = promoted(i) {
+                peak.hz *= m as f32;
+            }
+            out.peaks[out.count as usize] = peak;
             out.count += 1;
         }
     }

@@ -249,3 +249,40 @@ fn a_fan_below_the_rotor_range_is_no_rotor_and_a_rotor_with_shaft_lines_is() {
         assert!(p.rotor && (p.bpf_hz - 184.0).abs() < 0.5, "rotor reported at {}", p.bpf_hz);
     }
 }
+
+#[test]
+fn the_shaft_comb_of_a_rotor_cluster_is_not_reported_as_a_bpf() {
+    // Four two-blade rotors a few per cent apart. One (a chipped propeller, heard through a
+    // room's notch at its blade lines) has shaft-rate lines (odd multiples of its speed) as
+    // strong as its blade lines, 8 dB under the other rotors' blade lines: its comb at the
+    // shaft rate has every line and passes as a fundamental of its own. The others' shaft
+    // lines are 12 dB under their blade lines. That comb's double lies in the cluster of the
+    // other rotors' blade lines.
+    let mut rng = Rng::new(0x5AF7);
+    let bpfs = [318.0, 326.0, 334.0, 341.0];
+    let mut x = vec![0.0; 2 * N];
+    for (i, &b) in bpfs.iter().enumerate() {
+        let (blade, shaft_db) = if i == 2 { (0.02, 0.0) } else { (0.05, -12.0) };
+        add_group(&mut x, b, blade, &mut rng);
+        for k in [1.0f64, 3.0, 5.0, 7.0] {
+            let a = blade * 10f64.powf(shaft_db / 20.0) / (k / 2.0).max(1.0).sqrt();
+            let phase = 2.0 * PI * rng.uniform();
+            for (t, v) in x.iter_mut().enumerate() {
+                *v += a * (2.0 * PI * b / 2.0 * k * t as f64 / FS + phase).sin();
+            }
+        }
+    }
+    let peaks = analyse(&x, 20.0, &mut rng);
+    let reported: Vec<Vec<f32>> = peaks[SETTLING..]
+        .iter()
+        .map(|p| p.peaks[..p.count as usize].iter().map(|g| g.hz).collect())
+        .collect();
+    println!("{reported:.1?}");
+    assert!(reported.iter().all(|g| !g.is_empty()), "{reported:.1?}");
+    for g in reported.iter().flatten() {
+        assert!(
+            bpfs.iter().any(|&b| (f64::from(*g) - b).abs() < 2.0),
+            "group at {g} Hz: {reported:.1?}"
+        );
+    }
+}
