@@ -61,10 +61,11 @@ pub const FLOOR_BLOCK: usize = 32;
 /// bench's tuning seeds, BENCHMARKS.md "Session 9").
 pub const LINE_RATIO: f32 = 2.5;
 /// Search half-width for a comb's line beyond one bin, as a fraction of the line's frequency
-/// (0.4 %: with 0.2 % a rotor whose speed wanders by 1 % within seconds and jitters by 0.5 %
-/// lost its upper lines; chosen on the BPF bench's tuning seeds 1–8 among 0.2–0.6 %,
-/// BENCHMARKS.md issue 19, session 16: 0.5 % and over let music pass in over 2 % of frames).
-pub const LINE_SEARCH: f32 = 0.004;
+/// (0.3 %: with 0.2 % a rotor whose speed wanders by 1 % within seconds and jitters by 0.5 %
+/// lost its upper lines). Chosen on the BPF bench's tuning seeds 1–16 among 0.2–0.6 %
+/// (BENCHMARKS.md issue 19, session 16): within 2 Hz 75.9 / 79.6 / 81.0 % at 0.2 / 0.3 /
+/// 0.4 %, non-drone frames with a BPF 1.05 / 1.55 / 2.0 % (music holds more lines too).
+pub const LINE_SEARCH: f32 = 0.003;
 /// Whitened level at which a line's contribution to the score saturates.
 pub const LINE_CAP: f32 = 40.0;
 /// Fewest lines of a detected group (fewer only if fewer harmonics lie in the band).
