@@ -43,7 +43,7 @@ fn a_two_blade_quad_in_a_hall_is_heard_at_its_bpf() {
 
 /// Weak lines: a three-blade quad 5 m away in the 1.6 s hall over a 70 dB background, where
 /// its upper lines stand 2.5–3× over the floor (issue 19's misses). In the diffuse hall
-/// (session 16) this detector finds its BPF within 2 Hz in 22 of the 28 scored frames of
+/// (session 16) this detector finds its BPF within 2 Hz in 20 of the 28 scored frames of
 /// this 8 s clip; with a line search of ±0.2 % it found 19, with also the line ratio at 3.0
 /// and the quality threshold at 0.35 (before session 9) 14 (`bpf_cache tune 8` +
 /// `bpf_replay`, BENCHMARKS.md issue 19, session 16). Oracle: the rotors' true BPFs from the
