@@ -46,7 +46,7 @@
 //!    when that group's first line, or its own line at the multiple, is at least
 //!    [`SHAFT_DOMINANCE`] times as strong as its first line; with no such group in this
 //!    analysis but one reported in the previous, it is reported at the multiple when its own
-//!    line there is. When no group is reported, the `Peaks` output says "no rotor signature"
+//!    line there is. A group whose first line was not found is left as it is. When no group is reported, the `Peaks` output says "no rotor signature"
 //!    and carries no BPF.
 
 use crate::bpf::refine_peak;
@@ -61,10 +61,11 @@ pub const FLOOR_BLOCK: usize = 32;
 /// bench's tuning seeds, BENCHMARKS.md "Session 9").
 pub const LINE_RATIO: f32 = 2.5;
 /// Search half-width for a comb's line beyond one bin, as a fraction of the line's frequency
-/// (0.3 %: with 0.2 % a rotor whose speed wanders by 1 % within seconds and jitters by 0.5 %
-/// lost its upper lines). Chosen on the BPF bench's tuning seeds 1–16 among 0.2–0.6 %
-/// (BENCHMARKS.md issue 19, session 16): within 2 Hz 75.9 / 79.6 / 81.0 % at 0.2 / 0.3 /
-/// 0.4 %, non-drone frames with a BPF 1.05 / 1.55 / 2.0 % (music holds more lines too).
+/// (0.3 %; was 0.2 %, which lost the upper lines of rotors whose speed moves within the
+/// window). Measured among 0.2–0.6 % on the BPF bench's tuning seeds 1–16 (seeds 9–16 added
+/// after a first evaluation at 0.4 %; BENCHMARKS.md issue 19, session 16): within 2 Hz 75.9 /
+/// 79.6 / 81.0 % at 0.2 / 0.3 / 0.4 %, non-drone frames with a BPF 1.05 / 1.55 / 2.0 % (a held
+/// musical note keeps more lines too).
 pub const LINE_SEARCH: f32 = 0.003;
 /// Whitened level at which a line's contribution to the score saturates.
 pub const LINE_CAP: f32 = 40.0;
@@ -80,8 +81,11 @@ pub const SHAFT_RATIO: f32 = 0.6;
 /// line ([`Spectrum::blade_line`]).
 pub const BLADE_DOMINANCE: f32 = 2.5;
 /// A passing group whose double or triple lies in another's rotor cluster is a shaft comb when
-/// that one's first line is this many times stronger than its own (shaft lines are 8–12 dB
-/// under the blade line; a blade line is 3 dB over its own second harmonic).
+/// that one's first line, or its own line at the multiple, is this many times as strong as
+/// its own first line: the blade-passing line is a rotor's strongest, the shaft-rate lines
+/// (imbalance) are weaker. Measured at 0.5, 0.7, 1.0, 1.4 and 2.0 on the BPF bench's tuning
+/// seeds 1–8 (BENCHMARKS.md issue 19, session 16); 1.0 had the fewest octave errors without
+/// losing frames.
 pub const SHAFT_DOMINANCE: f32 = 1.0;
 /// Consecutive analyses a group must pass before it is reported (3: the comb held steady for
 /// 1.02 s; a sung note or a vowel rarely does, a rotor always).
@@ -530,6 +534,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
                 && eligible(j)
                 && [2usize, 3].iter().any(|&m| {
                     libm::fabsf(a - m as f32 * passing[i].hz) <= CLUSTER * a
+                        && own[0] > 0.0
                         && (passing_first[j][0] >= SHAFT_DOMINANCE * own[0]
                             || own[m - 1] >= SHAFT_DOMINANCE * own[0])
                 })
@@ -542,9 +547,11 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
         let own = passing_first[i];
         [2usize, 3].into_iter().find(|&m| {
             let b = m as f32 * passing[i].hz;
-            own[m - 1] >= SHAFT_DOMINANCE * own[0]
+            own[0] > 0.0
+                && own[m - 1] >= SHAFT_DOMINANCE * own[0]
                 && (0..history.count).any(|k| {
                     history.age[k] >= MIN_AGE
+                        && !history.missed[k]
                         && libm::fabsf(history.hz[k] - b) <= CLUSTER * history.hz[k]
                 })
         })

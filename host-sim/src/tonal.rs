@@ -532,7 +532,8 @@ mod tests {
         // Schroeder and Kuttruff (1962): above the Schroeder frequency a room's |H(f)|² has
         // maxima about 4 / T60 Hz apart on average (here 4 Hz at 1 s, 2.5 Hz at 1.6 s); the
         // energy falls 60 dB per RT60 (18 dB over 0.3 s at 1 s). The Freeverb-style [`Hall`]
-        // fails the first: its maxima lie 8–10 Hz apart (BENCHMARKS.md, issue 19, session 16).
+        // fails the first: its maxima lie 5.1–6.3 Hz apart, 1.6–2× too sparse (BENCHMARKS.md,
+        // issue 19, session 16).
         let fs = 16_000.0;
         for (rt60, volume, seed) in [(1.0, 3000.0, 1), (1.6, 6000.0, 2)] {
             let mut x = vec![0.0; (2.5 * fs) as usize];
