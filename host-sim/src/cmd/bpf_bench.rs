@@ -1,7 +1,7 @@
 //! `host-sim bpf-bench [--seeds tune|eval] [--duration S]`: the BPF detector on realistic
 //! simulated drones and on non-drone sources (`host_sim::bpf_bench`), scored from the `Peaks`
 //! frames read through the tracker's intake. Prints one line per airframe and per non-drone
-//! source, then the totals.
+//! source, the totals, then the per-seed mean ± sd of the three figures.
 //!
 //! Seeds: `tune` = `host_sim::bpf_bench::TUNING_SEEDS` (used while choosing the detector's
 //! constants), `eval` = `EVALUATION_SEEDS` (reported). Every airframe flies in both halls at every background level (55, 62, 70 dB),
@@ -49,13 +49,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "airframe", "frames", "with BPF", "within 2Hz", "octave"
     );
     let mut total = Score::default();
+    // Per seed (same order as `seeds`): drones, non-drone sources.
+    let mut per_seed = vec![(Score::default(), Score::default()); seeds.len()];
     for p in airframes() {
         let mut s = Score::default();
-        for &seed in seeds {
+        for (i, &seed) in seeds.iter().enumerate() {
             let distance = if seed % 2 == 1 { 3.0 } else { 5.0 };
             for hall in HALLS {
                 for bg in BACKGROUNDS_DB {
-                    s += drone_case(&p, hall, distance, bg, args.duration, seed)?;
+                    let c = drone_case(&p, hall, distance, bg, args.duration, seed)?;
+                    per_seed[i].0 += c;
+                    s += c;
                 }
             }
         }
@@ -84,14 +88,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut neg = Score::default();
     for kind in Negative::ALL {
         let mut s = Score::default();
-        for &seed in seeds {
+        for (i, &seed) in seeds.iter().enumerate() {
             for hall in HALLS {
-                s += negative_case(kind, hall, 65.0, 55.0, args.duration, seed)?;
+                let c = negative_case(kind, hall, 65.0, 55.0, args.duration, seed)?;
+                per_seed[i].1 += c;
+                s += c;
             }
         }
         println!("{:<20} {:>6} {:>8.1}%", kind.name(), s.frames, pct(s.with_bpf, s.frames));
         neg += s;
     }
     println!("{:<20} {:>6} {:>8.1}%", "all non-drone", neg.frames, pct(neg.with_bpf, neg.frames));
+    println!();
+    let stat =
+        |f: &dyn Fn(&(Score, Score)) -> f64| mean_sd(&per_seed.iter().map(f).collect::<Vec<_>>());
+    let (w, ws) = stat(&|(d, _)| pct(d.correct, d.frames));
+    let (o, os) = stat(&|(d, _)| pct(d.octave, d.frames));
+    let (n, ns) = stat(&|(_, n)| pct(n.with_bpf, n.frames));
+    println!(
+        "per seed, mean ± sd over {} seeds: drone frames within 2 Hz {w:.1} ± {ws:.1}%, octave \
+         {o:.2} ± {os:.2}%, non-drone frames with a BPF {n:.2} ± {ns:.2}%",
+        seeds.len()
+    );
     Ok(())
+}
+
+/// Mean and sample standard deviation (0 for fewer than two values).
+fn mean_sd(x: &[f64]) -> (f64, f64) {
+    let n = x.len().max(1) as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    if x.len() < 2 {
+        return (mean, 0.0);
+    }
+    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var.sqrt())
 }
