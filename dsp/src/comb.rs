@@ -46,8 +46,8 @@
 //!    when that group's first line, or its own line at the multiple, is at least
 //!    [`SHAFT_DOMINANCE`] times as strong as its first line; with no such group in this
 //!    analysis but one reported in the previous, it is reported at the multiple when its own
-//!    line there is. A group whose first line was not found is left as it is. When no group is reported, the `Peaks` output says "no rotor signature"
-//!    and carries no BPF.
+//!    line there is. A group whose first line was not found is left as it is. When no group
+//!    is reported, the `Peaks` output says "no rotor signature" and carries no BPF.
 
 use crate::bpf::refine_peak;
 use crate::{Config, Peak, Peaks, MAX_HARMONICS};
@@ -522,8 +522,9 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
             })
     };
     // A shaft comb: twice or three times its frequency falls in the rotor cluster of another
-    // reported group whose first line is [`SHAFT_DOMINANCE`] times stronger (a rotor's blade
-    // line is its strongest; several rotors' shaft lines fill the gaps between blade lines,
+    // reported group, and that group's first line or its own line at the multiple is
+    // [`SHAFT_DOMINANCE`] times as strong as its first line (a rotor's blade line is its
+    // strongest; several rotors' shaft lines fill the gaps between blade lines,
     // so [`Spectrum::resolve`] cannot always tell, and one rotor's blade line may sit in the
     // room's interference notch while another's does not).
     let shaft = |i: usize| {
