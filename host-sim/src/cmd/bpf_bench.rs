@@ -9,6 +9,8 @@
 //! 65 dB (direct, at the array) in both halls over the 55 dB background.
 use anyhow::bail;
 
+use super::bench::mean_sd;
+
 use host_sim::bpf_bench::{
     airframes, drone_case, negative_case, Score, BACKGROUNDS_DB, EVALUATION_SEEDS, HALLS,
     SETTLING_FRAMES, TUNING_SEEDS,
@@ -111,15 +113,4 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seeds.len()
     );
     Ok(())
-}
-
-/// Mean and sample standard deviation (0 for fewer than two values).
-fn mean_sd(x: &[f64]) -> (f64, f64) {
-    let n = x.len().max(1) as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    if x.len() < 2 {
-        return (mean, 0.0);
-    }
-    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, var.sqrt())
 }
