@@ -475,11 +475,9 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
         // Hysteresis: a comb already reported, or one in the rotor cluster of one reported in
         // the previous analysis (another rotor pair of the same airframe), continues at half
         // the quality that starts one.
-        let in_cluster = (0..history.count).any(|i| {
-            history.age[i] >= MIN_AGE
-                && libm::fabsf(history.hz[i] - g.hz) <= CLUSTER * history.hz[i]
-        });
-        let min_quality = if prior >= MIN_AGE || in_cluster {
+        let in_reported_cluster = (0..history.count)
+            .any(|i| history.age[i] >= MIN_AGE && in_cluster(history.hz[i], g.hz));
+        let min_quality = if prior >= MIN_AGE || in_reported_cluster {
             HOLD_QUALITY * config.bpf_min_quality
         } else {
             config.bpf_min_quality
@@ -516,10 +514,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     // MIN_AGE − 1 frames, and a frame with one pair of two reads as a thrust change).
     let aged = |i: usize| next.age[i] >= MIN_AGE;
     let eligible = |i: usize| {
-        aged(i)
-            || (0..n_passing).any(|j| {
-                aged(j) && libm::fabsf(passing[j].hz - passing[i].hz) <= CLUSTER * passing[j].hz
-            })
+        aged(i) || (0..n_passing).any(|j| aged(j) && in_cluster(passing[j].hz, passing[i].hz))
     };
     // A shaft comb: twice or three times its frequency falls in the rotor cluster of another
     // reported group, and that group's first line or its own line at the multiple is
@@ -534,7 +529,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
             j != i
                 && eligible(j)
                 && [2usize, 3].iter().any(|&m| {
-                    libm::fabsf(a - m as f32 * passing[i].hz) <= CLUSTER * a
+                    in_cluster(a, m as f32 * passing[i].hz)
                         && own[0] > 0.0
                         && (passing_first[j][0] >= SHAFT_DOMINANCE * own[0]
                             || own[m - 1] >= SHAFT_DOMINANCE * own[0])
@@ -551,9 +546,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
             own[0] > 0.0
                 && own[m - 1] >= SHAFT_DOMINANCE * own[0]
                 && (0..history.count).any(|k| {
-                    history.age[k] >= MIN_AGE
-                        && !history.missed[k]
-                        && libm::fabsf(history.hz[k] - b) <= CLUSTER * history.hz[k]
+                    history.age[k] >= MIN_AGE && !history.missed[k] && in_cluster(history.hz[k], b)
                 })
         })
     };
@@ -586,6 +579,12 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     out.rotor = out.count > 0;
     out.bpf_hz = out.peaks[0].hz;
     out
+}
+
+/// Whether `hz` lies in the rotor cluster of a group at `reference_hz` (within [`CLUSTER`] of
+/// it).
+fn in_cluster(reference_hz: f32, hz: f32) -> bool {
+    libm::fabsf(reference_hz - hz) <= CLUSTER * reference_hz
 }
 
 /// The median, over the lines `l[j]` with `j > m` not a multiple of `m`, of their level relative to
