@@ -208,7 +208,7 @@ impl Identifier {
         self.frames += 1;
         self.live.push(frame);
         let v = self.live.verdict()?;
-        for (e, p) in self.evidence.iter_mut().zip(&v.probabilities) {
+        for (e, p) in self.evidence.iter_mut().zip(&v.window_probabilities) {
             *e += f64::from(*p);
         }
         self.verdicts += 1;

@@ -6,9 +6,11 @@
 //!   `chip`; a class `none` for no drone); writes the model (JSON). `--features chip` trains
 //!   on what the chip sends (`Mfcc` frames, windows of 6), the model `aim track --id-model`
 //!   needs.
-//! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--json]`: the confusion matrix,
-//!   per-class precision and recall, the type accuracy among drone clips and the detection ROC
-//!   (drone probability against `none`) with the threshold at the stated false-alarm rate.
+//! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--per-recording] [--json]`: the
+//!   confusion matrix, per-class precision and recall, the type accuracy among drone clips and
+//!   the detection ROC (drone probability against `none`) with the threshold at the stated
+//!   false-alarm rate; per window of `Mfcc` frames, or per recording by the live verdict at
+//!   its end ([`chip::Live`]).
 //! - `aim id classify WAV... --model MODEL`: one JSON line per file:
 //!   `{"file":..,"class":..,"probability":..,"drone_probability":..,"probabilities":{..}}`.
 use std::io::Write as _;
@@ -81,6 +83,14 @@ struct EvalArgs {
     /// Print one JSON object instead of tables.
     #[arg(long)]
     json: bool,
+    /// Score each recording once, by the verdict `aim track` would show at its end (a `chip`
+    /// model: the mean over the last three disjoint windows of `Mfcc` frames,
+    /// `aim_tracker::id::chip::DECISION_WINDOWS`), rather than each window on its own.
+    #[arg(long)]
+    per_recording: bool,
+    /// With `--per-recording`: disjoint windows the verdict averages.
+    #[arg(long, default_value_t = chip::DECISION_WINDOWS)]
+    decision_windows: usize,
 }
 
 #[derive(clap::Args)]
@@ -137,7 +147,7 @@ fn load(
     chip_frames: bool,
     arrivals: Option<(f64, u64)>,
     index: impl Fn(&str) -> anyhow::Result<usize>,
-) -> anyhow::Result<(Vec<Vec<f32>>, Vec<usize>)> {
+) -> anyhow::Result<Loaded> {
     let ex = Extractor::new();
     let (mut x, mut y) = (Vec::new(), Vec::new());
     for (ci, c) in classes.iter().enumerate() {
@@ -153,7 +163,42 @@ fn load(
             }
         }
     }
-    Ok((x, y))
+    Ok(Loaded { x, y })
+}
+
+/// Feature vectors of a dataset, one per window (`chip`) or clip (`clip`).
+struct Loaded {
+    /// The vectors.
+    x: Vec<Vec<f32>>,
+    /// Each vector's class index.
+    y: Vec<usize>,
+}
+
+/// The model's verdict on one recording as `aim track` would give it at the recording's
+/// end: for a `chip` model, the recording's `Mfcc` frames through [`chip::Live`] (the mean
+/// over the last `decision_windows` disjoint windows, by default
+/// [`chip::DECISION_WINDOWS`]; a recording shorter than one
+/// window is one window of all its frames); for a `clip` model, the clip's one vector.
+fn recording_probabilities(
+    m: &model::Model,
+    path: &Path,
+    ex: &Extractor,
+    decision_windows: usize,
+) -> anyhow::Result<Vec<f32>> {
+    if !m.reads_chip_frames() {
+        let v = features_of(path, ex, false, None)?;
+        return Ok(m.predict(&v[0]));
+    }
+    let (x, rate) = audio::read_mono(path)?;
+    let frames: Vec<aim_wire::Mfcc> =
+        chip::frames_of_arrival(&x, rate, None)?.into_iter().map(|(_, f)| f).collect();
+    if frames.len() < chip::WINDOW_FRAMES {
+        let v = features_of(path, ex, true, None)?;
+        return Ok(m.predict(&v[0]));
+    }
+    let mut live = chip::Live::new(m.clone())?.with_decision_windows(decision_windows);
+    frames.iter().for_each(|f| live.push(f));
+    Ok(live.verdict().map(|v| v.probabilities.clone()).unwrap_or_default())
 }
 
 fn argmax(p: &[f32]) -> usize {
@@ -171,7 +216,7 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
         bail!("--array-share must be in 0..=1, got {}", a.array_share);
     }
     let arrivals = (chip_frames && a.array_share > 0.0).then_some((a.array_share, a.seed));
-    let (x, y) = load(&classes, chip_frames, arrivals, |n| {
+    let Loaded { x, y, .. } = load(&classes, chip_frames, arrivals, |n| {
         Ok(names.iter().position(|c| c == n).unwrap_or(0))
     })?;
     let t = model::Training {
@@ -206,7 +251,7 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
     }
     let m = model::Model::load(&a.model)?;
     let classes = dataset::scan(&a.dir)?;
-    let (x, y) = load(&classes, m.reads_chip_frames(), None, |n| {
+    let index = |n: &str| {
         m.classes.iter().position(|c| c == n).with_context(|| {
             format!(
                 "{}: class `{n}` is not one the model knows ({})",
@@ -214,13 +259,26 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
                 m.classes.join(", ")
             )
         })
-    })?;
+    };
+    let scores: Vec<(Vec<f32>, usize)> = if a.per_recording {
+        let ex = Extractor::new();
+        let mut v = Vec::new();
+        for c in &classes {
+            let label = index(&c.name)?;
+            for f in &c.files {
+                v.push((recording_probabilities(&m, f, &ex, a.decision_windows)?, label));
+            }
+        }
+        v
+    } else {
+        let d = load(&classes, m.reads_chip_frames(), None, index)?;
+        d.x.iter().zip(d.y).map(|(v, y)| (m.predict(v), y)).collect()
+    };
     let none = m.none_index();
     let mut confusion = metrics::Confusion::new(m.classes.clone());
     let (mut pos, mut neg) = (Vec::new(), Vec::new());
     let (mut type_right, mut type_n) = (0usize, 0usize);
-    for (v, &truth) in x.iter().zip(&y) {
-        let p = m.predict(v);
+    for (p, truth) in scores.iter().map(|(p, t)| (p, *t)) {
         confusion.add(truth, argmax(&p));
         let score = f64::from(m.drone_probability(&p));
         if Some(truth) == none {
@@ -250,7 +308,8 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
             })
             .collect();
         let j = serde_json::json!({
-            "clips": x.len(),
+            "clips": scores.len(),
+            "per_recording": a.per_recording,
             "accuracy": confusion.accuracy(),
             "type_accuracy": type_accuracy,
             "confusion": confusion,
@@ -268,10 +327,11 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         writeln!(out, "{j}")?;
         return Ok(());
     }
+    let unit = if a.per_recording || !m.reads_chip_frames() { "recordings" } else { "windows" };
     writeln!(
         out,
-        "{} clips; accuracy (all classes) {:.2} %",
-        x.len(),
+        "{} {unit} scored; accuracy (all classes) {:.2} %",
+        scores.len(),
         100.0 * confusion.accuracy()
     )?;
     if let Some(t) = type_accuracy {

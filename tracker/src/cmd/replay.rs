@@ -3,7 +3,8 @@
 //! [`aim_tracker::link::Merged`]) and print one JSON fix per output period:
 //! `{"t":..,"available":..,"x":..,"y":..,"z":..,"motion":"hover|yaw|horizontal|vertical","los":true|false,"drone":..}`
 //! (`t`: the instant it describes; `available`: when the array had sent what it used, s;
-//! `drone`: the classifier's verdict on the array's last 6 `Mfcc` frames,
+//! `drone`: the classifier's verdict, the mean over the array's last three disjoint windows
+//! of 6 `Mfcc` frames (`aim_tracker::id::chip::DECISION_WINDOWS`),
 //! `{"class":..,"p":..}`, `"none"`, or `null` before the first full window), then
 //! one statistics line (`{"kind":"stats",...}`: link, intake and latency counts) on stderr.
 

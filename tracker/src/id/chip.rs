@@ -243,16 +243,30 @@ pub fn windows(frames: &[Mfcc]) -> Vec<Vec<f32>> {
     frames.chunks_exact(WINDOW_FRAMES).map(features).collect()
 }
 
-/// The live classifier of one array: the last [`WINDOW_FRAMES`] frames and the model's verdict
-/// on them.
+/// Windows whose probabilities a live verdict averages: the newest window and the ones
+/// ending [`WINDOW_FRAMES`] and 2·[`WINDOW_FRAMES`] frames before it (disjoint windows, 18
+/// frames, 4.86 s of audio). A drone does not come and go within seconds, and one window of
+/// 2 s at 15 m over a 70 dB hall is misread far more often than three (BENCHMARKS.md, "Issue
+/// 16, session 17").
+pub const DECISION_WINDOWS: usize = 3;
+
+/// The live classifier of one array: the model's probabilities of its windows of the last
+/// [`WINDOW_FRAMES`] frames, one per frame, and the verdict on the last [`DECISION_WINDOWS`]
+/// disjoint ones.
 #[derive(Debug, Clone)]
 pub struct Live {
     model: super::model::Model,
     frames: std::collections::VecDeque<Mfcc>,
+    /// Probabilities of the windows ending at the last frames, newest last (at most
+    /// `(decision_windows − 1)·WINDOW_FRAMES + 1`).
+    history: std::collections::VecDeque<Vec<f32>>,
+    /// Disjoint windows a verdict averages ([`DECISION_WINDOWS`] unless set).
+    decision_windows: usize,
     verdict: Option<Verdict>,
 }
 
-/// The classifier's verdict on the newest window.
+/// The classifier's verdict: the mean of the model's probabilities over the newest window
+/// and up to [`DECISION_WINDOWS`] − 1 earlier disjoint ones.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Verdict {
     /// Most probable class (`none`: no drone).
@@ -263,6 +277,11 @@ pub struct Verdict {
     pub drone_probability: f32,
     /// Every class's probability, in the model's class order.
     pub probabilities: Vec<f32>,
+    /// The newest window's probabilities alone, in the model's class order.
+    pub window_probabilities: Vec<f32>,
+    /// Windows averaged (1 to the classifier's decision windows, [`DECISION_WINDOWS`] by
+    /// default).
+    pub windows: usize,
 }
 
 impl Live {
@@ -274,7 +293,19 @@ impl Live {
                  with `aim id train --features chip`)"
             );
         }
-        Ok(Self { model, frames: Default::default(), verdict: None })
+        Ok(Self {
+            model,
+            frames: Default::default(),
+            history: Default::default(),
+            decision_windows: DECISION_WINDOWS,
+            verdict: None,
+        })
+    }
+
+    /// The same classifier averaging `n` disjoint windows per verdict (at least 1).
+    pub fn with_decision_windows(mut self, n: usize) -> Self {
+        self.decision_windows = n.max(1);
+        self
     }
 
     /// The model's classes.
@@ -288,26 +319,43 @@ impl Live {
             self.frames.pop_front();
         }
         self.frames.push_back(*frame);
-        if self.frames.len() == WINDOW_FRAMES {
-            let window: Vec<Mfcc> = self.frames.iter().copied().collect();
-            let p = self.model.predict(&features(&window));
-            let best = (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap_or(0);
-            self.verdict = Some(Verdict {
-                class: self.model.classes[best].clone(),
-                probability: p[best],
-                drone_probability: self.model.drone_probability(&p),
-                probabilities: p,
-            });
+        if self.frames.len() < WINDOW_FRAMES {
+            return;
         }
+        let window: Vec<Mfcc> = self.frames.iter().copied().collect();
+        if self.history.len() == (self.decision_windows - 1) * WINDOW_FRAMES + 1 {
+            self.history.pop_front();
+        }
+        self.history.push_back(self.model.predict(&features(&window)));
+        // The newest window and the disjoint ones before it.
+        let n = self.history.len();
+        let used: Vec<&Vec<f32>> = (0..self.decision_windows)
+            .filter_map(|k| n.checked_sub(1 + k * WINDOW_FRAMES))
+            .map(|i| &self.history[i])
+            .collect();
+        let mut p = vec![0.0f32; self.model.classes.len()];
+        for w in &used {
+            p.iter_mut().zip(w.iter()).for_each(|(a, b)| *a += b / used.len() as f32);
+        }
+        let best = (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap_or(0);
+        self.verdict = Some(Verdict {
+            class: self.model.classes[best].clone(),
+            probability: p[best],
+            drone_probability: self.model.drone_probability(&p),
+            window_probabilities: self.history[n - 1].clone(),
+            windows: used.len(),
+            probabilities: p,
+        });
     }
 
-    /// Forgets the window (the array restarted: its frames no longer follow on).
+    /// Forgets the windows (the array restarted: its frames no longer follow on).
     pub fn clear(&mut self) {
         self.frames.clear();
+        self.history.clear();
         self.verdict = None;
     }
 
-    /// The verdict on the newest full window, if any.
+    /// The verdict on the newest full window and the disjoint ones before it, if any.
     pub fn verdict(&self) -> Option<&Verdict> {
         self.verdict.as_ref()
     }
