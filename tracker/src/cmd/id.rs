@@ -279,8 +279,8 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
     let (mut pos, mut neg) = (Vec::new(), Vec::new());
     let (mut type_right, mut type_n) = (0usize, 0usize);
     for (p, truth) in scores.iter().map(|(p, t)| (p, *t)) {
-        confusion.add(truth, argmax(&p));
-        let score = f64::from(m.drone_probability(&p));
+        confusion.add(truth, argmax(p));
+        let score = f64::from(m.drone_probability(p));
         if Some(truth) == none {
             neg.push(score);
         } else {
