@@ -99,6 +99,38 @@ fn train_eval_classify_on_simulated_recordings() {
 }
 
 #[test]
+fn per_recording_scores_the_live_verdict_once_per_recording() {
+    // The bundled chip model. 2 s clips hold one window: scored per window or per recording,
+    // the same numbers. 6 s clips hold three: three windows, one recording each.
+    let root = tmp("perrec");
+    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/models/drone-id-chip.json");
+    let (short, long) = (root.join("short"), root.join("long"));
+    let o = Options { clips_per_class: 2, seed_base: 8_000_000, secs: 2.0, ..Options::default() };
+    iddata::write_dataset(&short, &o).unwrap();
+    let o = Options { clips_per_class: 1, seed_base: 8_100_000, secs: 6.0, ..Options::default() };
+    iddata::write_dataset(&long, &o).unwrap();
+    let eval = |dir: &PathBuf, extra: &[&str]| -> serde_json::Value {
+        let mut args = vec!["eval", dir.to_str().unwrap(), "--model", model, "--json"];
+        args.extend_from_slice(extra);
+        let out = aim(&args);
+        assert!(out.status.success(), "{}", text(&out));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let (w, r) = (eval(&short, &[]), eval(&short, &["--per-recording"]));
+    assert_eq!(w["clips"], 14);
+    assert_eq!(r["clips"], 14);
+    assert_eq!(r["per_recording"], true);
+    assert_eq!(w["confusion"], r["confusion"]);
+    assert_eq!(w["detection"], r["detection"]);
+    let (w, r) = (eval(&long, &[]), eval(&long, &["--per-recording"]));
+    assert_eq!(w["clips"], 21, "three windows of 6 frames in 22 frames");
+    assert_eq!(r["clips"], 7);
+    let one = eval(&long, &["--per-recording", "--decision-windows", "1"]);
+    assert_eq!(one["clips"], 7);
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
 fn bad_input_gets_a_clear_error() {
     let root = tmp("bad");
     let data = root.join("data");
