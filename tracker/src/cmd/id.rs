@@ -6,7 +6,7 @@
 //!   `chip`; a class `none` for no drone); writes the model (JSON). `--features chip` trains
 //!   on what the chip sends (`Mfcc` frames, windows of 6), the model `aim track --id-model`
 //!   needs.
-//! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--per-recording] [--json]`: the
+//! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--per-recording [--decision-windows 3]] [--json]`: the
 //!   confusion matrix, per-class precision and recall, the type accuracy among drone clips and
 //!   the detection ROC (drone probability against `none`) with the threshold at the stated
 //!   false-alarm rate; per window of `Mfcc` frames, or per recording by the live verdict at
@@ -88,9 +88,10 @@ struct EvalArgs {
     /// `aim_tracker::id::chip::DECISION_WINDOWS`), rather than each window on its own.
     #[arg(long)]
     per_recording: bool,
-    /// With `--per-recording`: disjoint windows the verdict averages.
-    #[arg(long, default_value_t = chip::DECISION_WINDOWS)]
-    decision_windows: usize,
+    /// With `--per-recording` and a `chip` model: disjoint windows the verdict averages.
+    #[arg(long, default_value_t = chip::DECISION_WINDOWS as u16, requires = "per_recording",
+          value_parser = clap::value_parser!(u16).range(1..=100))]
+    decision_windows: u16,
 }
 
 #[derive(clap::Args)]
@@ -178,7 +179,8 @@ struct Loaded {
 /// end: for a `chip` model, the recording's `Mfcc` frames through [`chip::Live`] (the mean
 /// over the last `decision_windows` disjoint windows, by default
 /// [`chip::DECISION_WINDOWS`]; a recording shorter than one
-/// window is one window of all its frames); for a `clip` model, the clip's one vector.
+/// window is one window of all its frames, where `aim track` would
+/// still show no verdict); for a `clip` model, the clip's one vector.
 fn recording_probabilities(
     m: &model::Model,
     path: &Path,
@@ -198,7 +200,8 @@ fn recording_probabilities(
     }
     let mut live = chip::Live::new(m.clone())?.with_decision_windows(decision_windows);
     frames.iter().for_each(|f| live.push(f));
-    Ok(live.verdict().map(|v| v.probabilities.clone()).unwrap_or_default())
+    let v = live.verdict().context("a full window gave no verdict")?;
+    Ok(v.probabilities.clone())
 }
 
 fn argmax(p: &[f32]) -> usize {
@@ -266,7 +269,10 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         for c in &classes {
             let label = index(&c.name)?;
             for f in &c.files {
-                v.push((recording_probabilities(&m, f, &ex, a.decision_windows)?, label));
+                v.push((
+                    recording_probabilities(&m, f, &ex, usize::from(a.decision_windows))?,
+                    label,
+                ));
             }
         }
         v

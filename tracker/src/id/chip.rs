@@ -20,8 +20,8 @@ use super::clip::mean_sd;
 use aim_dsp::{Config, Geometry, Output, Pipeline};
 use aim_wire::{Mfcc, MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS};
 
-/// Frames per classification window: 1.5 s of hops plus the 0.512 s analysis window, 2.05 s
-/// of audio (a 2 s clip at 16 kHz gives 6 frames).
+/// Frames per classification window: five 0.256 s hops plus the 0.512 s analysis window, 1.79
+/// s of audio (a 2 s clip at 16 kHz gives 6 frames).
 pub const WINDOW_FRAMES: usize = 6;
 /// Fewest frames a window may have.
 pub const MIN_FRAMES: usize = 2;
@@ -245,7 +245,7 @@ pub fn windows(frames: &[Mfcc]) -> Vec<Vec<f32>> {
 
 /// Windows whose probabilities a live verdict averages: the newest window and the ones
 /// ending [`WINDOW_FRAMES`] and 2·[`WINDOW_FRAMES`] frames before it (disjoint windows, 18
-/// frames, 4.86 s of audio). A drone does not come and go within seconds, and one window of
+/// frames, 17 hops + 0.512 s = 4.86 s of audio). A drone does not come and go within seconds, and one window of
 /// 2 s at 15 m over a 70 dB hall is misread far more often than three (BENCHMARKS.md, "Issue
 /// 16, session 17").
 pub const DECISION_WINDOWS: usize = 3;
@@ -323,7 +323,7 @@ impl Live {
             return;
         }
         let window: Vec<Mfcc> = self.frames.iter().copied().collect();
-        if self.history.len() == (self.decision_windows - 1) * WINDOW_FRAMES + 1 {
+        while self.history.len() > (self.decision_windows - 1) * WINDOW_FRAMES {
             self.history.pop_front();
         }
         self.history.push_back(self.model.predict(&features(&window)));
