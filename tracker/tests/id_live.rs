@@ -73,8 +73,7 @@ fn the_live_verdict_is_the_mean_of_the_last_three_disjoint_windows() {
             assert!((a - b).abs() < 1e-6, "frame {k}: {:?} against {mean:?}", v.probabilities);
         }
         assert_eq!(v.window_probabilities, window(k));
-        let best = (0..mean.len()).max_by(|&a, &b| mean[a].total_cmp(&mean[b])).unwrap();
-        assert_eq!(v.class, model.classes[best]);
+        assert_eq!(v.class, model.classes[model.decide(&mean)]);
     }
     live.clear();
     assert!(live.verdict().is_none());
@@ -86,6 +85,34 @@ fn the_live_verdict_is_the_mean_of_the_last_three_disjoint_windows() {
     let v = live.verdict().unwrap();
     assert_eq!(v.windows, 1, "nothing from before the clear is averaged");
     assert_eq!(v.probabilities, window(5));
+}
+
+#[test]
+fn a_drone_threshold_decides_between_none_and_the_likeliest_drone() {
+    let mut model = default_model();
+    let k = model.classes.len();
+    let none = model.none_index().unwrap();
+    let a = (none + 1) % k;
+    // The likeliest class is a drone, but the drone probability is only 0.55.
+    let mut p = vec![0.0f32; k];
+    p[a] = 0.5;
+    p[none] = 0.45;
+    p[(none + 2) % k] = 0.05;
+    model.drone_threshold = None;
+    assert_eq!(model.decide(&p), a, "no threshold: the most probable class");
+    model.drone_threshold = Some(0.6);
+    assert_eq!(model.decide(&p), none, "0.55 < 0.6: no drone");
+    // `none` is the likeliest, but the drone probability 0.45 reaches a threshold of 0.4: the
+    // likeliest drone class.
+    let mut q = vec![0.0f32; k];
+    q[none] = 0.55;
+    q[(none + 2) % k] = 0.3;
+    q[a] = 0.15;
+    model.drone_threshold = Some(0.4);
+    assert_eq!(model.decide(&q), (none + 2) % k);
+    // The bundled model carries the threshold chosen on tuning recordings (BENCHMARKS.md).
+    let t = default_model().drone_threshold.expect("bundled threshold");
+    assert!((0.5..0.9).contains(&t), "{t}");
 }
 
 /// The synthetic link of `common` with the `Mfcc` frames of `x` (48 kHz) merged in link

@@ -88,6 +88,12 @@ struct EvalArgs {
     /// `aim_tracker::id::chip::DECISION_WINDOWS`), rather than each window on its own.
     #[arg(long)]
     per_recording: bool,
+    /// Write the detection threshold at `--false-alarm` on these recordings into the model
+    /// file (`drone_threshold`): from then on the model's verdicts (`aim track`'s `drone`
+    /// field, the confusion matrix here) name a drone only from that drone probability.
+    /// Choose it on tuning recordings, with `--per-recording` for the live verdict.
+    #[arg(long)]
+    set_threshold: bool,
     /// With `--per-recording` and a `chip` model: disjoint windows the verdict averages.
     #[arg(long, default_value_t = chip::DECISION_WINDOWS as u16, requires = "per_recording",
           value_parser = clap::value_parser!(u16).range(1..=100))]
@@ -285,7 +291,7 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
     let (mut pos, mut neg) = (Vec::new(), Vec::new());
     let (mut type_right, mut type_n) = (0usize, 0usize);
     for (p, truth) in scores.iter().map(|(p, t)| (p, *t)) {
-        confusion.add(truth, argmax(p));
+        confusion.add(truth, m.decide(p));
         let score = f64::from(m.drone_probability(p));
         if Some(truth) == none {
             neg.push(score);
@@ -301,6 +307,25 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
     let roc = (!pos.is_empty() && !neg.is_empty()).then(|| metrics::roc(&pos, &neg));
     let op = roc.as_ref().and_then(|r| metrics::at_false_alarm(r, a.false_alarm));
     let type_accuracy = (type_n > 0).then(|| type_right as f64 / type_n as f64);
+    if a.set_threshold {
+        let Some(p) = op else {
+            bail!(
+                "--set-threshold needs both `{NONE_CLASS}` and drone recordings in {}",
+                a.dir.display()
+            );
+        };
+        let mut with = m.clone();
+        with.drone_threshold = Some(p.threshold as f32);
+        with.save(&a.model)?;
+        eprintln!(
+            "drone threshold {:.4} (false alarms {:.2} %, detection {:.2} % on {}) written to {}",
+            p.threshold,
+            100.0 * p.false_alarm,
+            100.0 * p.detection,
+            a.dir.display(),
+            a.model.display()
+        );
+    }
     let mut out = std::io::stdout().lock();
     if a.json {
         let per_class: Vec<_> = (0..m.classes.len())
@@ -403,7 +428,7 @@ fn classify(a: ClassifyArgs) -> anyhow::Result<()> {
                 *a += b / windows.len() as f32;
             }
         }
-        let best = argmax(&p);
+        let best = m.decide(&p);
         let probabilities: serde_json::Map<String, serde_json::Value> =
             m.classes.iter().zip(&p).map(|(c, v)| (c.clone(), serde_json::json!(v))).collect();
         let j = serde_json::json!({

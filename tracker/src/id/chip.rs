@@ -269,7 +269,9 @@ pub struct Live {
 /// and up to [`DECISION_WINDOWS`] − 1 earlier disjoint ones.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Verdict {
-    /// Most probable class (`none`: no drone).
+    /// The decided class (`none`: no drone): the most probable, or with the model's
+    /// `drone_threshold` the most probable drone class only when the drone probability
+    /// reaches it ([`super::model::Model::decide`]).
     pub class: String,
     /// Its probability, 0–1.
     pub probability: f32,
@@ -337,7 +339,7 @@ impl Live {
         for w in &used {
             p.iter_mut().zip(w.iter()).for_each(|(a, b)| *a += b / used.len() as f32);
         }
-        let best = (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap_or(0);
+        let best = self.model.decide(&p);
         self.verdict = Some(Verdict {
             class: self.model.classes[best].clone(),
             probability: p[best],

@@ -78,6 +78,11 @@ pub struct Model {
     pub members: Vec<Net>,
     /// How it was trained (clips, epochs, seed), for the record.
     pub training: Training,
+    /// Drone probability (1 − P(none)) from which a decision names a drone ([`Model::decide`]),
+    /// set by `aim id eval --set-threshold` for a stated false-alarm rate on recordings of the
+    /// user's choosing; absent: the most probable class.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drone_threshold: Option<f32>,
 }
 
 /// Training settings.
@@ -277,7 +282,16 @@ impl Model {
         let members = (0..t.members.max(1))
             .map(|i| train_net(&xs, y, d, k, &t, t.seed.wrapping_add(i as u64)))
             .collect();
-        Ok(Self { format: FORMAT.into(), features, classes, mean, scale, members, training: t })
+        Ok(Self {
+            format: FORMAT.into(),
+            features,
+            classes,
+            mean,
+            scale,
+            members,
+            training: t,
+            drone_threshold: None,
+        })
     }
 
     /// Class probabilities of one feature vector (in `classes` order).
@@ -303,6 +317,18 @@ impl Model {
     /// Probability that a drone is present: 1 − P(none) (1 without a `none` class).
     pub fn drone_probability(&self, p: &[f32]) -> f32 {
         self.none_index().map_or(1.0, |i| 1.0 - p[i])
+    }
+
+    /// The class decided from probabilities `p` (model class order): without a
+    /// [`Model::drone_threshold`] or a `none` class, the most probable; with one, the most
+    /// probable drone class when the drone probability reaches the threshold, else `none`.
+    pub fn decide(&self, p: &[f32]) -> usize {
+        let argmax = |c: &mut dyn Iterator<Item = usize>| c.max_by(|&a, &b| p[a].total_cmp(&p[b]));
+        match (self.drone_threshold, self.none_index()) {
+            (Some(t), Some(none)) if self.drone_probability(p) < t => none,
+            (Some(_), Some(none)) => argmax(&mut (0..p.len()).filter(|&c| c != none)).unwrap_or(0),
+            _ => argmax(&mut (0..p.len())).unwrap_or(0),
+        }
     }
 
     /// Writes the model as JSON.
@@ -350,6 +376,11 @@ impl Model {
                 "{}: layer sizes do not match ({d} features, {h} hidden, {k} classes)",
                 path.display()
             );
+        }
+        if let Some(t) = m.drone_threshold {
+            if !(0.0..=1.0).contains(&t) {
+                bail!("{}: drone_threshold {t} is not a probability (0..=1)", path.display());
+            }
         }
         if m.features != super::clip::names() && m.features != super::chip::names() {
             bail!(
