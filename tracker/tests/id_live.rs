@@ -110,6 +110,14 @@ fn a_drone_threshold_decides_between_none_and_the_likeliest_drone() {
     q[a] = 0.15;
     model.drone_threshold = Some(0.4);
     assert_eq!(model.decide(&q), (none + 2) % k);
+    // At the threshold itself: no drone (the ROC of `aim id eval` counts scores above it).
+    let mut e = vec![0.0f32; k];
+    e[none] = 0.5;
+    e[a] = 0.5;
+    model.drone_threshold = Some(0.5);
+    assert_eq!(model.decide(&e), none);
+    e[none] = f32::NAN;
+    assert_eq!(model.decide(&e), none, "a NaN drone probability is no drone");
     // The bundled model carries the threshold chosen on tuning recordings (BENCHMARKS.md).
     let t = default_model().drone_threshold.expect("bundled threshold");
     assert!((0.5..0.9).contains(&t), "{t}");

@@ -314,11 +314,30 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
                 a.dir.display()
             );
         };
+        if !p.threshold.is_finite() || !(0.0..=1.0).contains(&p.threshold) {
+            bail!(
+                "--set-threshold: no drone probability gives {} % false alarms or fewer on {} \
+                 but every recording (threshold {}); choose a smaller --false-alarm",
+                100.0 * a.false_alarm,
+                a.dir.display(),
+                p.threshold
+            );
+        }
         let mut with = m.clone();
         with.drone_threshold = Some(p.threshold as f32);
-        with.save(&a.model)?;
+        // Written beside the model and renamed over it: a failed write leaves the old file.
+        let tmp = a.model.with_extension("json.tmp");
+        with.save(&tmp)?;
+        std::fs::rename(&tmp, &a.model)
+            .with_context(|| format!("cannot replace {}", a.model.display()))?;
+        let scored = if a.per_recording {
+            format!("live verdicts of {} windows per recording", a.decision_windows)
+        } else {
+            "single windows".to_string()
+        };
         eprintln!(
-            "drone threshold {:.4} (false alarms {:.2} %, detection {:.2} % on {}) written to {}",
+            "drone threshold {:.4} (false alarms {:.2} %, detection {:.2} % on {}, {scored}) \
+             written to {}; the confusion matrix below still uses the model as it was",
             p.threshold,
             100.0 * p.false_alarm,
             100.0 * p.detection,

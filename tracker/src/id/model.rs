@@ -78,7 +78,7 @@ pub struct Model {
     pub members: Vec<Net>,
     /// How it was trained (clips, epochs, seed), for the record.
     pub training: Training,
-    /// Drone probability (1 − P(none)) from which a decision names a drone ([`Model::decide`]),
+    /// Drone probability (1 − P(none)) above which a decision names a drone ([`Model::decide`]),
     /// set by `aim id eval --set-threshold` for a stated false-alarm rate on recordings of the
     /// user's choosing; absent: the most probable class.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -321,11 +321,12 @@ impl Model {
 
     /// The class decided from probabilities `p` (model class order): without a
     /// [`Model::drone_threshold`] or a `none` class, the most probable; with one, the most
-    /// probable drone class when the drone probability reaches the threshold, else `none`.
+    /// probable drone class when the drone probability is above the threshold (as the ROC of
+    /// `aim id eval` counts a detection), else `none` (also for a NaN probability).
     pub fn decide(&self, p: &[f32]) -> usize {
         let argmax = |c: &mut dyn Iterator<Item = usize>| c.max_by(|&a, &b| p[a].total_cmp(&p[b]));
         match (self.drone_threshold, self.none_index()) {
-            (Some(t), Some(none)) if self.drone_probability(p) < t => none,
+            (Some(t), Some(none)) if !(self.drone_probability(p) > t) => none,
             (Some(_), Some(none)) => argmax(&mut (0..p.len()).filter(|&c| c != none)).unwrap_or(0),
             _ => argmax(&mut (0..p.len())).unwrap_or(0),
         }
