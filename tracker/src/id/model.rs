@@ -9,6 +9,7 @@
 //! `RandomForest`). The detection ROC needs calibrated-ish probabilities, which a softmax
 //! gives and a forest's vote fractions give only coarsely. Training is mini-batch Adam on the
 //! cross-entropy with L2 weight decay, seeded: the same data and seed give the same model.
+use std::cmp::Ordering;
 use std::path::Path;
 
 use anyhow::{bail, Context as _};
@@ -326,7 +327,11 @@ impl Model {
     pub fn decide(&self, p: &[f32]) -> usize {
         let argmax = |c: &mut dyn Iterator<Item = usize>| c.max_by(|&a, &b| p[a].total_cmp(&p[b]));
         match (self.drone_threshold, self.none_index()) {
-            (Some(t), Some(none)) if !(self.drone_probability(p) > t) => none,
+            (Some(t), Some(none))
+                if self.drone_probability(p).partial_cmp(&t) != Some(Ordering::Greater) =>
+            {
+                none
+            }
             (Some(_), Some(none)) => argmax(&mut (0..p.len()).filter(|&c| c != none)).unwrap_or(0),
             _ => argmax(&mut (0..p.len())).unwrap_or(0),
         }
