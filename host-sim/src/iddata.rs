@@ -158,12 +158,24 @@ const SECOND_SOURCES: [Negative; 6] = [
     Negative::MainsHum,
 ];
 
+/// The first draws of a drone clip: the airframe, the distance (m) and the background (dB SPL).
+fn drone_draws(ty: DroneType, rng: &mut StdRng, o: &Options) -> (Draw, f64, f64) {
+    let draw = Draw::new(ty, rng.random());
+    let distance = uniform(rng, o.distance_m);
+    let bg_db = uniform(rng, o.background_db);
+    (draw, distance, bg_db)
+}
+
+/// The distance (m) and background (dB SPL) of the drone clip [`drone_scene`] makes of `seed`.
+pub fn drone_conditions(ty: DroneType, seed: u64, o: &Options) -> (f64, f64) {
+    let (_, distance, bg_db) = drone_draws(ty, &mut StdRng::seed_from_u64(seed), o);
+    (distance, bg_db)
+}
+
 /// A drone clip at the listener, Pa, `len` samples at `fs` (module docs).
 pub fn drone_scene(ty: DroneType, seed: u64, fs: f64, len: usize, o: &Options) -> Vec<f64> {
     let mut rng = StdRng::seed_from_u64(seed);
-    let draw = Draw::new(ty, rng.random());
-    let distance = uniform(&mut rng, o.distance_m);
-    let bg_db = uniform(&mut rng, o.background_db);
+    let (draw, distance, bg_db) = drone_draws(ty, &mut rng, o);
     let rt60 = rng.random_range(0.3..1.5);
     let rc = rng.random_range(2.0..6.0);
     let pre = (PRE_ROLL_S * fs) as usize;

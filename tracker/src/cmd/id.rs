@@ -128,22 +128,35 @@ fn features_of(
     arrival: Option<&chip::Arrival>,
 ) -> anyhow::Result<Vec<Vec<f32>>> {
     if chip_frames {
-        let (x, rate) = audio::read_mono(path)?;
-        let frames: Vec<aim_wire::Mfcc> =
-            chip::frames_of_arrival(&x, rate, arrival)?.into_iter().map(|(_, m)| m).collect();
-        let w = chip::windows(&frames);
-        if w.is_empty() {
-            bail!(
-                "{}: {} Mfcc frames, at least {} needed (about 0.8 s of audio)",
-                path.display(),
-                frames.len(),
-                chip::MIN_FRAMES
-            );
-        }
-        return Ok(w);
+        return chip_windows(path, &mfcc_frames(path, arrival)?);
     }
     let x = audio::read_mono_16k(path)?;
     Ok(vec![clip::features(&x, ex)])
+}
+
+/// The `Mfcc` frames the chip's pipeline makes of the recording at `path` (heard through
+/// `arrival`'s array if given).
+fn mfcc_frames(
+    path: &Path,
+    arrival: Option<&chip::Arrival>,
+) -> anyhow::Result<Vec<aim_wire::Mfcc>> {
+    let (x, rate) = audio::read_mono(path)?;
+    Ok(chip::frames_of_arrival(&x, rate, arrival)?.into_iter().map(|(_, m)| m).collect())
+}
+
+/// [`chip::windows`] of the recording at `path`'s `frames`: at least one, or an error naming
+/// the file.
+fn chip_windows(path: &Path, frames: &[aim_wire::Mfcc]) -> anyhow::Result<Vec<Vec<f32>>> {
+    let w = chip::windows(frames);
+    if w.is_empty() {
+        bail!(
+            "{}: {} Mfcc frames, at least {} needed (about 0.8 s of audio)",
+            path.display(),
+            frames.len(),
+            chip::MIN_FRAMES
+        );
+    }
+    Ok(w)
 }
 
 /// Feature vectors and labels of every clip of `classes`, labels from `index`; with
@@ -154,7 +167,7 @@ fn load(
     chip_frames: bool,
     arrivals: Option<(f64, u64)>,
     index: impl Fn(&str) -> anyhow::Result<usize>,
-) -> anyhow::Result<Loaded> {
+) -> anyhow::Result<(Vec<Vec<f32>>, Vec<usize>)> {
     let ex = Extractor::new();
     let (mut x, mut y) = (Vec::new(), Vec::new());
     for (ci, c) in classes.iter().enumerate() {
@@ -170,15 +183,7 @@ fn load(
             }
         }
     }
-    Ok(Loaded { x, y })
-}
-
-/// Feature vectors of a dataset, one per window (`chip`) or clip (`clip`).
-struct Loaded {
-    /// The vectors.
-    x: Vec<Vec<f32>>,
-    /// Each vector's class index.
-    y: Vec<usize>,
+    Ok((x, y))
 }
 
 /// The model's verdict on one recording as `aim track` would give it at the recording's
@@ -197,21 +202,14 @@ fn recording_probabilities(
         let v = features_of(path, ex, false, None)?;
         return Ok(m.predict(&v[0]));
     }
-    let (x, rate) = audio::read_mono(path)?;
-    let frames: Vec<aim_wire::Mfcc> =
-        chip::frames_of_arrival(&x, rate, None)?.into_iter().map(|(_, f)| f).collect();
+    let frames = mfcc_frames(path, None)?;
     if frames.len() < chip::WINDOW_FRAMES {
-        let v = features_of(path, ex, true, None)?;
-        return Ok(m.predict(&v[0]));
+        return Ok(m.predict(&chip_windows(path, &frames)?[0]));
     }
     let mut live = chip::Live::new(m.clone())?.with_decision_windows(decision_windows);
     frames.iter().for_each(|f| live.push(f));
     let v = live.verdict().context("a full window gave no verdict")?;
     Ok(v.probabilities.clone())
-}
-
-fn argmax(p: &[f32]) -> usize {
-    (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap_or(0)
 }
 
 fn train(a: TrainArgs) -> anyhow::Result<()> {
@@ -225,7 +223,7 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
         bail!("--array-share must be in 0..=1, got {}", a.array_share);
     }
     let arrivals = (chip_frames && a.array_share > 0.0).then_some((a.array_share, a.seed));
-    let Loaded { x, y, .. } = load(&classes, chip_frames, arrivals, |n| {
+    let (x, y) = load(&classes, chip_frames, arrivals, |n| {
         Ok(names.iter().position(|c| c == n).unwrap_or(0))
     })?;
     let t = model::Training {
@@ -238,7 +236,8 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
     let feature_names = if chip_frames { chip::names() } else { clip::names() };
     let m = model::Model::train(feature_names, names.clone(), &x, &y, t)?;
     m.save(&a.out)?;
-    let right = x.iter().zip(&y).filter(|(v, &c)| argmax(&m.predict(v)) == c).count();
+    let right =
+        x.iter().zip(&y).filter(|(v, &c)| m.most_probable(&m.predict(v), None) == c).count();
     let mut out = std::io::stdout().lock();
     for c in &classes {
         writeln!(out, "{:<20} {} clips", c.name, c.files.len())?;
@@ -283,8 +282,8 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         }
         v
     } else {
-        let d = load(&classes, m.reads_chip_frames(), None, index)?;
-        d.x.iter().zip(d.y).map(|(v, y)| (m.predict(v), y)).collect()
+        let (x, y) = load(&classes, m.reads_chip_frames(), None, index)?;
+        x.iter().zip(y).map(|(v, y)| (m.predict(v), y)).collect()
     };
     let none = m.none_index();
     let mut confusion = metrics::Confusion::new(m.classes.clone());
@@ -298,10 +297,8 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         } else {
             pos.push(score);
             // Type among the drone classes only.
-            let best =
-                (0..p.len()).filter(|&c| Some(c) != none).max_by(|&a, &b| p[a].total_cmp(&p[b]));
             type_n += 1;
-            type_right += usize::from(best == Some(truth));
+            type_right += usize::from(m.most_probable(p, none) == truth);
         }
     }
     let roc = (!pos.is_empty() && !neg.is_empty()).then(|| metrics::roc(&pos, &neg));

@@ -325,16 +325,24 @@ impl Model {
     /// probable drone class when the drone probability is above the threshold (as the ROC of
     /// `aim id eval` counts a detection), else `none` (also for a NaN probability).
     pub fn decide(&self, p: &[f32]) -> usize {
-        let argmax = |c: &mut dyn Iterator<Item = usize>| c.max_by(|&a, &b| p[a].total_cmp(&p[b]));
         match (self.drone_threshold, self.none_index()) {
             (Some(t), Some(none))
                 if self.drone_probability(p).partial_cmp(&t) != Some(Ordering::Greater) =>
             {
                 none
             }
-            (Some(_), Some(none)) => argmax(&mut (0..p.len()).filter(|&c| c != none)).unwrap_or(0),
-            _ => argmax(&mut (0..p.len())).unwrap_or(0),
+            (Some(_), none) => self.most_probable(p, none),
+            _ => self.most_probable(p, None),
         }
+    }
+
+    /// The most probable class of `p` (model class order), leaving out class `except` if
+    /// given (0 when no class is left).
+    pub fn most_probable(&self, p: &[f32], except: Option<usize>) -> usize {
+        (0..p.len())
+            .filter(|&c| Some(c) != except)
+            .max_by(|&a, &b| p[a].total_cmp(&p[b]))
+            .unwrap_or(0)
     }
 
     /// Writes the model as JSON.
