@@ -161,15 +161,16 @@ fn chip_windows(path: &Path, frames: &[aim_wire::Mfcc]) -> anyhow::Result<Vec<Ve
 
 /// Feature vectors and labels of every clip of `classes`, labels from `index`; with
 /// `arrivals = Some((share, seed))`, that share of the clips heard through an array
-/// ([`chip::Arrival::draw`], seeded by `seed` and the clip's place).
+/// ([`chip::Arrival::draw`], seeded by `seed` and the clip's place). The clips are read on
+/// every core (the result is the same, in the same order, on any number); a progress bar on
+/// a terminal counts them.
 fn load(
     classes: &[dataset::Class],
     chip_frames: bool,
     arrivals: Option<(f64, u64)>,
     index: impl Fn(&str) -> anyhow::Result<usize>,
 ) -> anyhow::Result<(Vec<Vec<f32>>, Vec<usize>)> {
-    let ex = Extractor::new();
-    let (mut x, mut y) = (Vec::new(), Vec::new());
+    let mut jobs = Vec::new();
     for (ci, c) in classes.iter().enumerate() {
         let label = index(&c.name)?;
         for (fi, f) in c.files.iter().enumerate() {
@@ -177,10 +178,50 @@ fn load(
                 let clip = seed.wrapping_mul(1 << 20) ^ ((ci as u64) << 40) ^ fi as u64;
                 (chip::unit_hash(clip) < share).then(|| chip::Arrival::draw(clip << 8))
             });
-            for v in features_of(f, &ex, chip_frames, arrival.as_ref())? {
-                x.push(v);
-                y.push(label);
-            }
+            jobs.push((f.as_path(), label, arrival));
+        }
+    }
+    let progress = indicatif::ProgressBar::new(jobs.len() as u64).with_style(
+        indicatif::ProgressStyle::with_template("reading clips {bar:30} {pos}/{len} {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(jobs.len());
+    let mut done: Vec<(usize, anyhow::Result<Vec<Vec<f32>>>)> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads.max(1))
+            .map(|_| {
+                s.spawn(|| {
+                    let ex = Extractor::new();
+                    let mut out = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some((path, _, arrival)) = jobs.get(i) else { break };
+                        let r = features_of(path, &ex, chip_frames, arrival.as_ref());
+                        let failed = r.is_err();
+                        out.push((i, r));
+                        progress.inc(1);
+                        if failed {
+                            // Stop this worker's reading: the first error is reported.
+                            next.store(jobs.len(), std::sync::atomic::Ordering::Relaxed);
+                            break;
+                        }
+                    }
+                    out
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+            .collect()
+    });
+    progress.finish_and_clear();
+    done.sort_by_key(|(i, _)| *i);
+    let (mut x, mut y) = (Vec::new(), Vec::new());
+    for (i, r) in done {
+        for v in r? {
+            x.push(v);
+            y.push(jobs[i].1);
         }
     }
     Ok((x, y))

@@ -280,9 +280,25 @@ impl Model {
             .iter()
             .map(|v| v.iter().zip(&mean).zip(&scale).map(|((a, m), s)| (a - m) / s).collect())
             .collect();
-        let members = (0..t.members.max(1))
-            .map(|i| train_net(&xs, y, d, k, &t, t.seed.wrapping_add(i as u64)))
-            .collect();
+        // The members on as many threads as there are cores (each is seeded by its index
+        // alone, so the model is the same on any machine).
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let seeds: Vec<u64> =
+            (0..t.members.max(1)).map(|i| t.seed.wrapping_add(i as u64)).collect();
+        let mut members = Vec::with_capacity(seeds.len());
+        for chunk in seeds.chunks(threads) {
+            let xs = &xs;
+            let t = &t;
+            std::thread::scope(|s| {
+                let nets: Vec<_> = chunk
+                    .iter()
+                    .map(|&sd| s.spawn(move || train_net(xs, y, d, k, t, sd)))
+                    .collect();
+                for n in nets {
+                    members.push(n.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
+                }
+            });
+        }
         Ok(Self {
             format: FORMAT.into(),
             features,
