@@ -125,6 +125,7 @@ fn per_recording_scores_the_live_verdict_once_per_recording() {
     let (w, r) = (eval(&long, &[]), eval(&long, &["--per-recording"]));
     assert_eq!(w["clips"], 21, "three windows of 6 frames in 22 frames");
     assert_eq!(r["clips"], 7);
+    assert_eq!((&w["scored"], &r["scored"]), (&"windows".into(), &"recordings".into()));
     let one = eval(&long, &["--per-recording", "--decision-windows", "1"]);
     assert_eq!(one["clips"], 7);
     std::fs::remove_dir_all(&root).unwrap();

@@ -80,7 +80,8 @@ struct EvalArgs {
     /// False-alarm rate of the reported detection threshold.
     #[arg(long, default_value_t = 0.01)]
     false_alarm: f64,
-    /// Print one JSON object instead of tables.
+    /// Print one JSON object instead of tables (`clips`: how many scores, each a recording or
+    /// a window as `scored` says).
     #[arg(long)]
     json: bool,
     /// Score each recording once, by the verdict `aim track` would show at its end (a `chip`
@@ -159,6 +160,60 @@ fn chip_windows(path: &Path, frames: &[aim_wire::Mfcc]) -> anyhow::Result<Vec<Ve
     Ok(w)
 }
 
+/// `f` of every job, in the jobs' order, computed on every core (each thread with its own
+/// [`Extractor`]); the first error in job order is returned, and no job is started after an
+/// error. A progress bar on a terminal counts the recordings.
+fn on_every_core<J: Sync, T: Send>(
+    jobs: &[J],
+    f: impl Fn(&Extractor, &J) -> anyhow::Result<T> + Sync,
+) -> anyhow::Result<Vec<T>> {
+    on_threads(jobs, std::thread::available_parallelism().map_or(1, |n| n.get()), f)
+}
+
+/// [`on_every_core`] on `threads` threads.
+fn on_threads<J: Sync, T: Send>(
+    jobs: &[J],
+    threads: usize,
+    f: impl Fn(&Extractor, &J) -> anyhow::Result<T> + Sync,
+) -> anyhow::Result<Vec<T>> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let progress = indicatif::ProgressBar::new(jobs.len() as u64).with_style(
+        indicatif::ProgressStyle::with_template("reading recordings {bar:30} {pos}/{len} {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let next = AtomicUsize::new(0);
+    let threads = threads.min(jobs.len());
+    let mut done: Vec<(usize, anyhow::Result<T>)> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads.max(1))
+            .map(|_| {
+                s.spawn(|| {
+                    let ex = Extractor::new();
+                    let mut out = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(job) = jobs.get(i) else { break };
+                        let r = f(&ex, job);
+                        let failed = r.is_err();
+                        out.push((i, r));
+                        progress.inc(1);
+                        if failed {
+                            next.store(jobs.len(), Ordering::Relaxed);
+                        }
+                    }
+                    out
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+            .collect()
+    });
+    progress.finish_and_clear();
+    done.sort_by_key(|(i, _)| *i);
+    done.into_iter().map(|(_, r)| r).collect()
+}
+
 /// Feature vectors and labels of every clip of `classes`, labels from `index`; with
 /// `arrivals = Some((share, seed))`, that share of the clips heard through an array
 /// ([`chip::Arrival::draw`], seeded by `seed` and the clip's place). The clips are read on
@@ -181,47 +236,14 @@ fn load(
             jobs.push((f.as_path(), label, arrival));
         }
     }
-    let progress = indicatif::ProgressBar::new(jobs.len() as u64).with_style(
-        indicatif::ProgressStyle::with_template("reading clips {bar:30} {pos}/{len} {eta}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(jobs.len());
-    let mut done: Vec<(usize, anyhow::Result<Vec<Vec<f32>>>)> = std::thread::scope(|s| {
-        let workers: Vec<_> = (0..threads.max(1))
-            .map(|_| {
-                s.spawn(|| {
-                    let ex = Extractor::new();
-                    let mut out = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some((path, _, arrival)) = jobs.get(i) else { break };
-                        let r = features_of(path, &ex, chip_frames, arrival.as_ref());
-                        let failed = r.is_err();
-                        out.push((i, r));
-                        progress.inc(1);
-                        if failed {
-                            // Stop this worker's reading: the first error is reported.
-                            next.store(jobs.len(), std::sync::atomic::Ordering::Relaxed);
-                            break;
-                        }
-                    }
-                    out
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .flat_map(|w| w.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
-            .collect()
-    });
-    progress.finish_and_clear();
-    done.sort_by_key(|(i, _)| *i);
+    let done = on_every_core(&jobs, |ex, (path, _, arrival)| {
+        features_of(path, ex, chip_frames, arrival.as_ref())
+    })?;
     let (mut x, mut y) = (Vec::new(), Vec::new());
-    for (i, r) in done {
-        for v in r? {
+    for (vectors, (_, label, _)) in done.into_iter().zip(&jobs) {
+        for v in vectors {
             x.push(v);
-            y.push(jobs[i].1);
+            y.push(*label);
         }
     }
     Ok((x, y))
@@ -310,18 +332,15 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         })
     };
     let scores: Vec<(Vec<f32>, usize)> = if a.per_recording {
-        let ex = Extractor::new();
-        let mut v = Vec::new();
+        let mut jobs = Vec::new();
         for c in &classes {
             let label = index(&c.name)?;
-            for f in &c.files {
-                v.push((
-                    recording_probabilities(&m, f, &ex, usize::from(a.decision_windows))?,
-                    label,
-                ));
-            }
+            jobs.extend(c.files.iter().map(|f| (f.as_path(), label)));
         }
-        v
+        let windows = usize::from(a.decision_windows);
+        on_every_core(&jobs, |ex, &(path, label)| {
+            Ok((recording_probabilities(&m, path, ex, windows)?, label))
+        })?
     } else {
         let (x, y) = load(&classes, m.reads_chip_frames(), None, index)?;
         x.iter().zip(y).map(|(v, y)| (m.predict(v), y)).collect()
@@ -384,6 +403,8 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         );
     }
     let mut out = std::io::stdout().lock();
+    // What one score is: a recording, or one window of a recording's Mfcc frames.
+    let unit = if a.per_recording || !m.reads_chip_frames() { "recordings" } else { "windows" };
     if a.json {
         let per_class: Vec<_> = (0..m.classes.len())
             .map(|c| {
@@ -397,6 +418,7 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
             .collect();
         let j = serde_json::json!({
             "clips": scores.len(),
+            "scored": unit,
             "per_recording": a.per_recording,
             "accuracy": confusion.accuracy(),
             "type_accuracy": type_accuracy,
@@ -415,7 +437,6 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         writeln!(out, "{j}")?;
         return Ok(());
     }
-    let unit = if a.per_recording || !m.reads_chip_frames() { "recordings" } else { "windows" };
     writeln!(
         out,
         "{} {unit} scored; accuracy (all classes) {:.2} %",
@@ -498,4 +519,32 @@ fn classify(a: ClassifyArgs) -> anyhow::Result<()> {
         writeln!(out, "{j}")?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Results come back in the jobs' order on any number of threads, and the first error
+    /// in job order is the one returned.
+    #[test]
+    fn work_on_every_core_keeps_the_order_and_the_first_error() {
+        let jobs: Vec<u64> = (0..200).collect();
+        let square = |_: &Extractor, j: &u64| -> anyhow::Result<u64> { Ok(j * j) };
+        let want: Vec<u64> = jobs.iter().map(|j| j * j).collect();
+        for threads in [1, 2, 7] {
+            assert_eq!(on_threads(&jobs, threads, square).unwrap(), want);
+        }
+        let fail = |_: &Extractor, j: &u64| -> anyhow::Result<u64> {
+            if *j == 60 || *j == 61 {
+                bail!("job {j} failed")
+            }
+            Ok(*j)
+        };
+        for threads in [1, 2, 7] {
+            let e = on_threads(&jobs, threads, fail).unwrap_err();
+            assert_eq!(e.to_string(), "job 60 failed");
+        }
+        assert!(on_threads(&[] as &[u64], 2, square).unwrap().is_empty());
+    }
 }

@@ -246,6 +246,30 @@ fn train_net(xs: &[Vec<f32>], y: &[usize], d: usize, k: usize, t: &Training, see
     }
 }
 
+/// The ensemble's members (member i from seed `t.seed + i`), `threads` at a time: each is
+/// seeded by its index alone, so the members are the same on any number of threads.
+fn train_members(
+    xs: &[Vec<f32>],
+    y: &[usize],
+    d: usize,
+    k: usize,
+    t: &Training,
+    threads: usize,
+) -> Vec<Net> {
+    let seeds: Vec<u64> = (0..t.members.max(1)).map(|i| t.seed.wrapping_add(i as u64)).collect();
+    let mut members = Vec::with_capacity(seeds.len());
+    for chunk in seeds.chunks(threads.max(1)) {
+        std::thread::scope(|s| {
+            let nets: Vec<_> =
+                chunk.iter().map(|&sd| s.spawn(move || train_net(xs, y, d, k, t, sd))).collect();
+            for n in nets {
+                members.push(n.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
+            }
+        });
+    }
+    members
+}
+
 impl Model {
     /// Trains on feature vectors `x` with labels `y` (indices into `classes`).
     pub fn train(
@@ -280,25 +304,8 @@ impl Model {
             .iter()
             .map(|v| v.iter().zip(&mean).zip(&scale).map(|((a, m), s)| (a - m) / s).collect())
             .collect();
-        // The members on as many threads as there are cores (each is seeded by its index
-        // alone, so the model is the same on any machine).
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let seeds: Vec<u64> =
-            (0..t.members.max(1)).map(|i| t.seed.wrapping_add(i as u64)).collect();
-        let mut members = Vec::with_capacity(seeds.len());
-        for chunk in seeds.chunks(threads) {
-            let xs = &xs;
-            let t = &t;
-            std::thread::scope(|s| {
-                let nets: Vec<_> = chunk
-                    .iter()
-                    .map(|&sd| s.spawn(move || train_net(xs, y, d, k, t, sd)))
-                    .collect();
-                for n in nets {
-                    members.push(n.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
-                }
-            });
-        }
+        let members = train_members(&xs, y, d, k, &t, threads);
         Ok(Self {
             format: FORMAT.into(),
             features,
@@ -457,6 +464,13 @@ mod tests {
         // Same data, same seed: the same model.
         let again = Model::train(m.features.clone(), m.classes.clone(), &x, &y, t).unwrap();
         assert_eq!(again, m);
+        // The members trained one at a time are those trained side by side.
+        let xs: Vec<Vec<f32>> = x
+            .iter()
+            .map(|v| v.iter().zip(&m.mean).zip(&m.scale).map(|((a, u), s)| (a - u) / s).collect())
+            .collect();
+        assert_eq!(train_members(&xs, &y, 2, 3, &t, 1), m.members);
+        assert_eq!(train_members(&xs, &y, 2, 3, &t, 3), m.members);
         assert!(Model::train(vec!["a".into()], vec!["p".into()], &[vec![1.0]], &[0], t).is_err());
     }
 }
