@@ -21,7 +21,7 @@ fn clip(class: &str, seed: u64, fs: u32, secs: f64) -> Vec<f32> {
 
 #[test]
 fn the_bundled_model_names_held_out_simulated_drones_from_the_chips_frames() {
-    // 2 s clips at 16 kHz, seeds 7 000 000.. (the model's training used 1000..5999 and
+    // 2 s clips at 16 kHz, seeds 7 000 000.. (the model's training used 1000..25999 and
     // 1 100 000..1 100 599).
     let model = default_model();
     assert!(model.reads_chip_frames());
@@ -39,7 +39,7 @@ fn the_bundled_model_names_held_out_simulated_drones_from_the_chips_frames() {
         }
     }
     // The held-out 7-class figure per window is about 93 % (BENCHMARKS.md) and these 70 clips
-    // give 62 (60 with the model before session 17);
+    // gave 62 with the session 17 model (60 before);
     // a model broken anywhere on the way (features, wire quantisation, JSON) names about one
     // in seven. At least 50.
     assert!(right >= 50, "{right} of {n} clips named right");
