@@ -161,8 +161,9 @@ fn chip_windows(path: &Path, frames: &[aim_wire::Mfcc]) -> anyhow::Result<Vec<Ve
 }
 
 /// `f` of every job, in the jobs' order, computed on every core (each thread with its own
-/// [`Extractor`]); the first error in job order is returned, and no job is started after an
-/// error. A progress bar on a terminal counts the recordings.
+/// [`Extractor`]); the first error in job order is returned, and once a job has failed no
+/// further job is handed out (those already taken finish). A progress bar on a terminal
+/// counts the recordings.
 fn on_every_core<J: Sync, T: Send>(
     jobs: &[J],
     f: impl Fn(&Extractor, &J) -> anyhow::Result<T> + Sync,
