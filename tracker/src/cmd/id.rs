@@ -6,11 +6,12 @@
 //!   `chip`; a class `none` for no drone); writes the model (JSON). `--features chip` trains
 //!   on what the chip sends (`Mfcc` frames, windows of 6), the model `aim track --id-model`
 //!   needs.
-//! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--per-recording [--decision-windows 3]] [--json]`: the
-//!   confusion matrix, per-class precision and recall, the type accuracy among drone clips and
-//!   the detection ROC (drone probability against `none`) with the threshold at the stated
-//!   false-alarm rate; per window of `Mfcc` frames, or per recording by the live verdict at
-//!   its end ([`chip::Live`]).
+//! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--per-recording
+//!   [--decision-windows 3]] [--set-threshold] [--json]`: the confusion matrix, per-class
+//!   precision and recall, the type accuracy among drone clips and the detection ROC (drone
+//!   probability against `none`) with the threshold at the stated false-alarm rate; per window
+//!   of `Mfcc` frames, or per recording by the live verdict at its end ([`chip::Live`]);
+//!   `--set-threshold` writes that threshold into the model file.
 //! - `aim id classify WAV... --model MODEL`: one JSON line per file:
 //!   `{"file":..,"class":..,"probability":..,"drone_probability":..,"probabilities":{..}}`.
 use std::io::Write as _;

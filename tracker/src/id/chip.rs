@@ -245,9 +245,9 @@ pub fn windows(frames: &[Mfcc]) -> Vec<Vec<f32>> {
 
 /// Windows whose probabilities a live verdict averages: the newest window and the ones
 /// ending [`WINDOW_FRAMES`] and 2·[`WINDOW_FRAMES`] frames before it (disjoint windows, 18
-/// frames, 17 hops + 0.512 s = 4.86 s of audio). A drone does not come and go within seconds, and one window of
-/// 2 s at 15 m over a 70 dB hall is misread far more often than three (BENCHMARKS.md, "Issue
-/// 16, session 17").
+/// frames, 17 hops + 0.512 s = 4.86 s of audio). A drone does not come and go within
+/// seconds, and one window of 2 s at 15 m over a 70 dB hall is misread far more often than
+/// three (BENCHMARKS.md, "Issue 16, session 17").
 pub const DECISION_WINDOWS: usize = 3;
 
 /// The live classifier of one array: the model's probabilities of its windows of the last
@@ -270,8 +270,8 @@ pub struct Live {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Verdict {
     /// The decided class (`none`: no drone): the most probable, or with the model's
-    /// `drone_threshold` the most probable drone class only when the drone probability
-    /// reaches it ([`super::model::Model::decide`]).
+    /// `drone_threshold` the most probable drone class only when the drone probability is
+    /// above it ([`super::model::Model::decide`]).
     pub class: String,
     /// Its probability, 0–1.
     pub probability: f32,
