@@ -5,18 +5,20 @@
 //!
 //! - **a time base per boot** (an *epoch*): sample indices become host seconds through the site
 //!   file's clock offset and drift ([`crate::site::ArrayPose::sample_time`]) for the first boot
-//!   (an array whose clock puts its first frames more than [`IntakeConfig::window_ahead_s`]
+//!   (an array whose clock puts its first frames more than [`IntakeConfig::align_to_link_s`]
 //!   from the other arrays' newest audio, a board started at another time, is placed at that
 //!   newest audio instead: counted in [`IntakeStats::aligned_to_link`]).
 //!   A reboot starts a new epoch in one of two ways: a `Hello` whose boot count differs from the
-//!   array's previous `Hello` (at once: everything the old boot left in the reorder stage is
-//!   released first), or, when that `Hello` was lost, the sample index jumping back (a restarted
+//!   array's previous `Hello` and whose sample index went back (at once: everything the old
+//!   boot left in the reorder stage is released first; should the frames after it go on with
+//!   the old count, the `Hello` lied, the old time base is taken back and the frames follow
+//!   it: [`IntakeStats::reboots_withdrawn`]), or, when that `Hello` was lost, the sample index jumping back (a restarted
 //!   board counts from 0 again) once [`IntakeConfig::confirm_frames`] frames agree on the new
 //!   count. The link carries no wall time, so the new epoch's first frame is placed
 //!   [`IntakeConfig::epoch_gap_s`] after the previous epoch's last audio (the real pause is
 //!   unknown; the tracker restarts across it).
 //! - **a plausibility window**: a frame must end no earlier than
-//!   [`IntakeConfig::window_behind_s`] before the newest audio and start no later than
+//!   [`IntakeConfig::window_behind_s`] before the newest audio and no later than
 //!   [`IntakeConfig::window_ahead_s`] after it. A frame outside is held aside; if
 //!   `confirm_frames` frames agree with each other there, the stream really moved (a silence in
 //!   the same boot, or a reboot); otherwise they are counted as out of window and dropped — a
@@ -55,8 +57,14 @@ pub struct IntakeConfig {
     /// A frame ending more than this before the newest audio of its epoch is out of window, s
     /// (`Peaks` end with the newest audio; the span is checked separately).
     pub window_behind_s: f64,
-    /// A frame starting more than this after the newest audio of its epoch is out of window, s.
+    /// A frame ending more than this after the newest audio of its epoch is out of window, s:
+    /// it waits for `confirm_frames` frames that agree with it. A few frames lost on the link
+    /// open a gap shorter than this; a single frame whose sample index is wrong must not move
+    /// the time base (inside the window it would: the frames after it would then be late).
     pub window_ahead_s: f64,
+    /// An array's first time base is its own clock unless that puts its first frames more
+    /// than this from the other arrays' newest audio, s (a board started at another time).
+    pub align_to_link_s: f64,
     /// Frames that must agree with each other outside the window before the time base follows
     /// them (a silence or a reboot), and before the first time base is set.
     pub confirm_frames: usize,
@@ -71,7 +79,8 @@ impl Default for IntakeConfig {
         Self {
             reorder_s: 0.3,
             window_behind_s: 1.0,
-            window_ahead_s: 2.0,
+            window_ahead_s: 0.5,
+            align_to_link_s: 2.0,
             confirm_frames: 3,
             max_span_s: 1.0,
             epoch_gap_s: 5.0,
@@ -95,6 +104,10 @@ pub struct IntakeStats {
     pub new_epochs: u64,
     /// Of [`Self::new_epochs`], those a `Hello` with a new boot count announced.
     pub reboots_announced: u64,
+    /// `Hello`s with a new boot count and a sample index gone back after which the frames went
+    /// on with the old count: the old time base was taken back (not counted in
+    /// [`Self::new_epochs`]).
+    pub reboots_withdrawn: u64,
     /// Silences the time base followed within one boot (the sample index jumped ahead).
     pub gaps: u64,
     /// Frames outside the expected window that no later frames confirmed: set aside.
@@ -104,7 +117,7 @@ pub struct IntakeStats {
     /// Inputs older than what the reorder stage had already released: dropped.
     pub late: u64,
     /// Arrays whose first time base was placed at the link's newest audio because their own
-    /// clock put it more than [`IntakeConfig::window_ahead_s`] away (a board started at
+    /// clock put it more than [`IntakeConfig::align_to_link_s`] away (a board started at
     /// another time than the others).
     pub aligned_to_link: u64,
 }
@@ -183,6 +196,16 @@ impl Timeline {
     }
 }
 
+/// An array's time base, boot count and release mark, and the link's newest audio, before a
+/// `Hello` announced a reboot.
+#[derive(Clone, Copy, Debug)]
+struct BeforeReboot {
+    timeline: Timeline,
+    boot_count: Option<u32>,
+    released_until: f64,
+    now: f64,
+}
+
 /// Everything the intake keeps of one array.
 #[derive(Clone, Debug, Default)]
 struct ArrayState {
@@ -197,6 +220,9 @@ struct ArrayState {
     released_until: f64,
     /// Boot count of the array's latest `Hello`.
     boot_count: Option<u32>,
+    /// What a `Hello` that announced a reboot changed, until the next frame tells whether the
+    /// board really restarted.
+    before_reboot: Option<BeforeReboot>,
 }
 
 /// The intake of the arrays of one site.
@@ -260,17 +286,33 @@ impl Intake {
                 check_hello(id, h, state, &self.site, pose.mic_positions_m.as_slice())?;
                 self.stats.hellos += 1;
                 let rebooted = state.boot_count.is_some_and(|b| b != h.boot_count);
+                let previous_boot = state.boot_count;
                 state.boot_count = Some(h.boot_count);
-                if let (true, Some(old)) = (rebooted, state.timeline) {
+                // A new boot counts from zero again: its Hello's index lies behind the old
+                // boot's newest audio.
+                let went_back = |old: &Timeline| frame.header.sample_index < old.newest_end;
+                if let (true, Some(old)) = (rebooted, state.timeline.filter(went_back)) {
                     let fs = f64::from(state.rate_hz.unwrap_or(DEFAULT_SAMPLE_RATE_HZ));
+                    let mut before = BeforeReboot {
+                        timeline: old,
+                        boot_count: previous_boot,
+                        released_until: state.released_until,
+                        now: self.now,
+                    };
                     // The old boot's inputs all describe audio up to its last: release them.
                     self.stats.inputs += release(state, id, old.newest_s(pose, fs), sink);
+                    before.released_until = state.released_until;
                     self.stats.out_of_window += state.pending.len() as u64;
                     state.pending.clear();
                     self.stats.new_epochs += 1;
                     self.stats.reboots_announced += 1;
                     let first = frame.header.sample_index;
                     state.timeline = Some(old.next_epoch(pose, fs, first, self.config.epoch_gap_s));
+                    state.before_reboot = Some(before);
+                    // Nothing of the new boot to release yet: its first frame will (releasing
+                    // up to the new time base now would tell the tracker no input before it
+                    // follows, which a withdrawn reboot's frames would then contradict).
+                    return Ok(());
                 }
                 0
             }
@@ -294,9 +336,25 @@ impl Intake {
         let in_window = |newest_end: u64| {
             let behind = (c.window_behind_s * fs) as u64;
             let ahead = (c.window_ahead_s * fs) as u64;
-            end.saturating_add(behind) >= newest_end && start <= newest_end.saturating_add(ahead)
+            end.saturating_add(behind) >= newest_end && end <= newest_end.saturating_add(ahead)
         };
         let mut accepted = Vec::new();
+        // After a Hello announced a reboot, a frame that goes on with the old boot's count
+        // and not the new one's: the Hello lied (a board does not reboot and keep counting).
+        let hello = matches!(frame.body, Body::Hello(_));
+        if let (Some(before), false) = (state.before_reboot, hello) {
+            let new_fits = state.timeline.is_some_and(|tl| in_window(tl.newest_end));
+            if !new_fits && in_window(before.timeline.newest_end) {
+                state.timeline = Some(before.timeline);
+                state.boot_count = before.boot_count;
+                state.released_until = before.released_until;
+                self.now = before.now;
+                self.stats.new_epochs -= 1;
+                self.stats.reboots_announced -= 1;
+                self.stats.reboots_withdrawn += 1;
+            }
+            state.before_reboot = None;
+        }
         if state.timeline.is_some_and(|tl| in_window(tl.newest_end)) {
             self.stats.out_of_window += state.pending.len() as u64;
             state.pending.clear();
@@ -320,7 +378,7 @@ impl Intake {
                     None => {
                         let own = pose.sample_time(chain_end as f64, fs);
                         let shift_s =
-                            if self.now.is_finite() && (own - self.now).abs() > c.window_ahead_s {
+                            if self.now.is_finite() && (own - self.now).abs() > c.align_to_link_s {
                                 self.stats.aligned_to_link += 1;
                                 self.now - own
                             } else {

@@ -354,13 +354,15 @@ impl Session {
         let span = &mut self.inputs_span;
         let mut fixes = Vec::new();
         let history = &mut self.history;
+        let before = *self.intake.stats();
         self.intake.push(frame, &mut |r| {
             keep(history, &r);
             feed(tracker, span, r, &mut fixes)
         })?;
+        note_time_base(frame.header.array_id, &before, self.intake.stats(), self.intake.config());
         if self.tracker.takeovers() != takeovers {
             eprintln!(
-                "note: array {tracked} fell silent; array {} took over the track",
+                "note: array {} took over the track from array {tracked}",
                 self.tracker.array_id()
             );
         }
@@ -458,6 +460,7 @@ impl Session {
                 "hellos": i.hellos,
                 "new_epochs": i.new_epochs,
                 "reboots_announced": i.reboots_announced,
+                "reboots_withdrawn": i.reboots_withdrawn,
                 "gaps": i.gaps,
                 "out_of_window": i.out_of_window,
                 "bad_span": i.bad_span,
@@ -491,6 +494,28 @@ impl Session {
 
 /// Keeps `r` in the re-tracking history, which is dropped once it would exceed
 /// [`RETRACK_HISTORY`] items.
+
+/// Says on stderr when a frame moved an array's time base (a reboot, a silence the stream
+/// jumped over, a reboot announced and then withdrawn): the fixes' times jump there.
+fn note_time_base(array: u8, before: &IntakeStats, after: &IntakeStats, config: &IntakeConfig) {
+    if after.new_epochs > before.new_epochs {
+        eprintln!(
+            "note: array {array} restarted (its sample count went back); its time base starts \
+             again {} s after its last audio",
+            config.epoch_gap_s
+        );
+    }
+    if after.gaps > before.gaps {
+        eprintln!("note: array {array} was silent; its frames go on after the gap");
+    }
+    if after.reboots_withdrawn > before.reboots_withdrawn {
+        eprintln!(
+            "note: array {array}: a Hello announced a reboot but the frames go on with the old \
+             sample count; the old time base is kept"
+        );
+    }
+}
+
 fn keep(history: &mut Option<Vec<Released>>, r: &Released) {
     // Snippets are not kept: 31 a second per array, each 256 samples; a fresh tracker takes
     // the old one's recent snippets instead (`Tracker::fresh`).

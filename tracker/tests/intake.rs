@@ -352,3 +352,57 @@ fn a_hello_with_a_new_boot_count_starts_a_new_epoch_even_inside_the_window() {
     assert!(after >= 140, "{after} fixes after the reboot");
     check_bounded(&frames[first_boot..], &fixes[fixes.len() - after..]);
 }
+
+#[test]
+fn a_frame_a_second_or_two_ahead_costs_only_itself() {
+    // A frame whose sample index is wrong by 0.6–2 s (it passes the CRC): set aside, the rest
+    // of the track is the clean one, fix for fix.
+    let mut seq = 0;
+    let frames = link(0, 20 * FS, &mut seq, 3);
+    let clean = run(&frames).0;
+    for ahead_s in [0.6, 1.0, 1.5, 2.0] {
+        let mut bad = frames.clone();
+        let i = bad.iter().position(|f| matches!(f.body, Body::Doa(_)) && f.header.seq > 150);
+        let mut moved = bad[i.unwrap()].clone();
+        moved.header.sample_index += (ahead_s * FS as f64) as u64;
+        bad.insert(i.unwrap() + 1, moved);
+        let (fixes, s, err) = run(&bad);
+        assert!(err.is_none(), "{err:?}");
+        let st = *s.intake_stats();
+        assert_eq!(
+            (st.out_of_window, st.late, st.new_epochs, st.gaps),
+            (1, 0, 0, 0),
+            "{ahead_s} s: {st:?}"
+        );
+        assert_eq!(fixes, clean, "{ahead_s} s ahead");
+    }
+}
+
+#[test]
+fn a_hello_announcing_a_reboot_while_the_count_goes_on_is_withdrawn() {
+    // A Hello with a new boot count and sample index 0 in the middle of a boot, the frames after
+    // it going on with the old count: no new time base, every fix at its own time.
+    let mut seq = 0;
+    let mut frames = link(0, 20 * FS, &mut seq, 3);
+    let clean = run(&frames).0;
+    let i = frames.iter().position(|f| f.header.sample_index > 10 * FS).unwrap();
+    let liar = Frame {
+        header: Header { array_id: 1, seq: 999, sample_index: 0 },
+        body: Body::Hello(Hello {
+            boot_count: 999_999,
+            ..Hello::new([0, 1, 0], FS as u32, 1024, &[])
+        }),
+    };
+    frames.insert(i, liar);
+    let (fixes, s, err) = run(&frames);
+    assert!(err.is_none(), "{err:?}");
+    let st = *s.intake_stats();
+    assert_eq!((st.new_epochs, st.reboots_announced, st.reboots_withdrawn), (0, 0, 1), "{st:?}");
+    // The reorder stage released the old boot's inputs at the Hello: a few that followed are
+    // late. Every fix is at a time of the clean track, on the drone's bearing.
+    assert!(st.late <= 6, "{st:?}");
+    assert!(fixes.len() + 3 >= clean.len(), "{} fixes against {}", fixes.len(), clean.len());
+    let times: Vec<f64> = clean.iter().map(|f| f.t).collect();
+    assert!(fixes.iter().all(|f| times.iter().any(|t| (t - f.t).abs() < 1e-9)));
+    assert!(fixes.iter().filter(|f| f.t > 2.0).all(|f| on_bearing(f, f.t)));
+}
