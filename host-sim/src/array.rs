@@ -104,17 +104,29 @@ impl ArrayConfig {
         {
             return Err(format!("array {}: positions and yaw must be finite numbers", self.id));
         }
-        if !(self.clock.drift_ppm.abs() < 1000.0 && self.clock.offset_s.abs() < 10.0) {
+        let (drift, offset) = (self.clock.drift_ppm, self.clock.offset_s);
+        if !(drift.is_finite() && drift.abs() < 1000.0) {
             return Err(format!(
-                "array {}: clock drift must be under 1000 ppm and offset under 10 s",
+                "array {}: clock_drift_ppm {drift:?} must be under 1000 ppm",
                 self.id
             ));
         }
-        if !(self.gain_mismatch_db >= 0.0
-            && self.phase_mismatch_us >= 0.0
-            && self.self_noise_db.is_finite())
-        {
-            return Err(format!("array {}: mismatches must not be negative", self.id));
+        if !(offset.is_finite() && offset.abs() < 10.0) {
+            return Err(format!("array {}: clock_offset_s {offset:?} must be under 10 s", self.id));
+        }
+        let (gain, phase) = (self.gain_mismatch_db, self.phase_mismatch_us);
+        if !(gain >= 0.0 && gain.is_finite() && phase >= 0.0 && phase.is_finite()) {
+            return Err(format!(
+                "array {}: gain_mismatch_db {gain:?} and phase_mismatch_us {phase:?} must be finite \
+                 and not negative",
+                self.id
+            ));
+        }
+        if !self.self_noise_db.is_finite() {
+            return Err(format!(
+                "array {}: self_noise_db {:?} must be a finite level, dB SPL",
+                self.id, self.self_noise_db
+            ));
         }
         if let Some([a, b]) = self.link_down_s {
             if !(a.is_finite() && b.is_finite() && 0.0 <= a && a < b) {

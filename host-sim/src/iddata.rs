@@ -38,7 +38,7 @@ const PRE_ROLL_S: f64 = 0.5;
 /// Sample format of the written WAV files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SampleFormat {
-    /// 16-bit integers, full scale [`I16_FULL_SCALE_PA`].
+    /// 16-bit integers, full scale 2 Pa (100 dB SPL peak; `I16_FULL_SCALE_PA`).
     I16,
     /// 32-bit float, pascals.
     F32,
@@ -93,22 +93,37 @@ impl Options {
         if self.clips_per_class == 0 {
             bail!("--clips must be at least 1");
         }
-        if !(self.secs.is_finite() && (0.1..=600.0).contains(&self.secs)) {
-            bail!("--secs must be in 0.1..=600, got {}", self.secs);
+        if self.seed_base.checked_add(self.clips_per_class as u64 - 1).is_none() {
+            bail!(
+                "--seed {} + --clips {} runs past the largest seed",
+                self.seed_base,
+                self.clips_per_class
+            );
         }
-        if !(8_000..=192_000).contains(&self.rate_hz) {
-            bail!("--rate must be in 8000..=192000 Hz, got {}", self.rate_hz);
+        // `aim id` reads 0.25 s or more, at 16 or 48 kHz.
+        if !(self.secs.is_finite() && (0.25..=600.0).contains(&self.secs)) {
+            bail!("--secs must be in 0.25..=600 (aim id reads 0.25 s or more), got {}", self.secs);
+        }
+        if ![16_000, 48_000].contains(&self.rate_hz) {
+            bail!(
+                "--rate must be 16000 or 48000 Hz (the rates aim id reads), got {}",
+                self.rate_hz
+            );
         }
         if self.channels == 0 || self.channels > 16 {
             bail!("--channels must be in 1..=16, got {}", self.channels);
         }
         let (a, b) = self.distance_m;
-        if !(a.is_finite() && b.is_finite() && 0.5 <= a && a <= b) {
-            bail!("distance range must satisfy 0.5 <= min <= max, got {a}..{b}");
+        if !(a.is_finite() && b.is_finite() && 0.5 <= a && a <= b && b <= 1000.0) {
+            bail!("distance range must satisfy 0.5 <= min <= max <= 1000 m, got {a}..{b}");
         }
         let (a, b) = self.background_db;
-        if !(a.is_finite() && b.is_finite() && a <= b) {
-            bail!("background range must satisfy min <= max, got {a}..{b}");
+        // 16-bit clips saturate at 2 Pa (`I16_FULL_SCALE_PA`, 100 dB SPL peak); a background
+        // near it leaves no room for the drone.
+        if !(a.is_finite() && b.is_finite() && 0.0 <= a && a <= b && b <= MAX_BACKGROUND_DB) {
+            bail!(
+                "background range must satisfy 0 <= min <= max <= {MAX_BACKGROUND_DB} dB SPL, got {a}..{b}"
+            );
         }
         if !(0.0..=1.0).contains(&self.second_source_probability) {
             bail!("--second-source must be in 0..=1");
@@ -119,6 +134,9 @@ impl Options {
         Ok(())
     }
 }
+
+/// Loudest background `host-sim id-dataset` accepts, dB SPL.
+pub const MAX_BACKGROUND_DB: f64 = 90.0;
 
 /// A seed of its own for clip `seed` of class `class` (SplitMix64 of both).
 pub fn clip_seed(class: usize, seed: u64) -> u64 {
@@ -319,7 +337,7 @@ mod tests {
     fn dataset_folders_files_and_bad_options() {
         let dir = std::env::temp_dir().join(format!("aim-iddata-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let o = Options { clips_per_class: 2, secs: 0.2, channels: 2, ..Options::default() };
+        let o = Options { clips_per_class: 2, secs: 0.25, channels: 2, ..Options::default() };
         let written = write_dataset(&dir, &o).unwrap();
         assert_eq!(written.len(), 7);
         for (name, files) in &written {
@@ -327,7 +345,7 @@ mod tests {
             let r = hound::WavReader::open(&files[0]).unwrap();
             assert_eq!(r.spec().channels, 2);
             assert_eq!(r.spec().sample_rate, 16_000);
-            assert_eq!(r.len(), 2 * 3200, "{name}");
+            assert_eq!(r.len(), 2 * 4000, "{name}");
         }
         // One class alone: the same clip, byte for byte.
         let dir1 = dir.with_extension("none");
@@ -341,5 +359,15 @@ mod tests {
         assert!(write_dataset(&dir, &unknown).unwrap_err().to_string().contains("blimp"));
         let bad = Options { clips_per_class: 0, ..Options::default() };
         assert!(write_dataset(&dir, &bad).unwrap_err().to_string().contains("--clips"));
+        // What `aim id` could not read, or a seed range that wraps, is refused up front.
+        let rate = Options { rate_hz: 44_100, ..Options::default() };
+        assert!(write_dataset(&dir, &rate).unwrap_err().to_string().contains("--rate"));
+        let short = Options { secs: 0.1, ..Options::default() };
+        assert!(write_dataset(&dir, &short).unwrap_err().to_string().contains("--secs"));
+        let loud = Options { background_db: (55.0, 500.0), ..Options::default() };
+        assert!(write_dataset(&dir, &loud).unwrap_err().to_string().contains("background"));
+        let wrap = Options { seed_base: u64::MAX - 5, clips_per_class: 10, ..Options::default() };
+        assert!(write_dataset(&dir, &wrap).unwrap_err().to_string().contains("--seed"));
+        assert!(!dir.exists());
     }
 }

@@ -15,7 +15,8 @@ struct Cli {
 enum Command {
     /// Simulate a scenario: write one WAV per array, the truth and the site file.
     Simulate(cmd::simulate::Args),
-    /// Run the on-chip pipeline on a recording and print its outputs as JSON lines.
+    /// Run the on-chip pipeline on a recording and print its outputs (one line each; JSON with
+    /// `--jsonl`).
     Analyze(cmd::analyze::Args),
     /// Simulate, run the pipeline and the tracker, and report the error against the truth.
     Fly(cmd::fly::Args),

@@ -440,19 +440,58 @@ pub struct Scenario {
     pub render: Render,
 }
 
+/// A TOML syntax or type error as one line: `FILE:LINE: message` (the parser's own text spans
+/// several lines, with a drawing of the line).
+pub fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> anyhow::Error {
+    let message = e.message().trim().replace('\n', " ");
+    match e.span() {
+        Some(span) => {
+            let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
+            anyhow!("{}:{line}: {message}", path.display())
+        }
+        None => anyhow!("{}: {message}", path.display()),
+    }
+}
+
+/// Whether following `base` links from `from` (at most 8) comes back to `to`.
+fn base_loops_to(from: &Path, to: &Path) -> bool {
+    let Ok(target) = to.canonicalize() else { return false };
+    let mut at = from.to_path_buf();
+    for _ in 0..8 {
+        if at.canonicalize().is_ok_and(|p| p == target) {
+            return true;
+        }
+        let Some(next) = std::fs::read_to_string(&at)
+            .ok()
+            .and_then(|t| t.parse::<toml::Table>().ok())
+            .and_then(|t| t.get("base").and_then(|b| b.as_str().map(String::from)))
+        else {
+            return false;
+        };
+        at = at.parent().unwrap_or(Path::new(".")).join(next);
+    }
+    false
+}
+
 /// Reads `path` as a TOML table, following `base` links (at most 8 deep).
 fn load_table(path: &Path, depth: usize) -> anyhow::Result<(toml::Table, bool)> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let table: toml::Table =
-        toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let table: toml::Table = toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
     let Some(base) = table.get("base") else { return Ok((table, false)) };
     if depth >= 8 {
-        bail!("{}: `base` chain longer than 8 files (a loop?)", path.display());
+        bail!("{}: `base` chain longer than 8 files", path.display());
     }
     let base =
         base.as_str().ok_or_else(|| anyhow!("{}: `base` must be a file name", path.display()))?;
     let base_path = path.parent().unwrap_or(Path::new(".")).join(base);
+    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same(&base_path, path) || (depth == 0 && base_loops_to(&base_path, path)) {
+        bail!("{}: its `base` chain ({}) loops back to it", path.display(), base_path.display());
+    }
     let (mut merged, _) = load_table(&base_path, depth + 1)
         .with_context(|| format!("{}: reading its base {}", path.display(), base_path.display()))?;
     merge(&mut merged, table);
@@ -478,13 +517,13 @@ impl Scenario {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let (table, based) = load_table(path, 0)?;
         let file: File = if based {
-            table
-                .try_into()
-                .map_err(|e| anyhow!("{} (merged with its base): {e}", path.display()))?
+            table.try_into().map_err(|e: toml::de::Error| {
+                anyhow!("{} (merged with its base): {}", path.display(), e.message().trim())
+            })?
         } else {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("reading {}", path.display()))?;
-            toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?
+            toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?
         };
         let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let mut s = Self::from_file(file, stem).map_err(|e| {
@@ -1018,6 +1057,38 @@ fn check_path_file(p: &FilePath) -> Result<(), String> {
     within("path.hover_end_s", p.hover_end_s, 0.0..=3600.0, "s")?;
     if let Some(yaw) = p.yaw_deg {
         within("path.yaw_deg", yaw, -360.0..=360.0, "degrees")?;
+    }
+    // The continuous kinds' numbers (NaN fails every range).
+    if let Some(c) = p.centre {
+        point("path.centre", &c)?;
+    }
+    for (key, corner) in [("path.area_min", p.area_min), ("path.area_max", p.area_max)] {
+        if let Some(c) = corner {
+            point(key, &c)?;
+        }
+    }
+    if let Some(r) = p.radius_m {
+        within("path.radius_m", r, 0.0..=MAX_SIDE_M, "m")?;
+    }
+    if let Some(l) = p.length_m {
+        within("path.length_m", l, 0.0..=MAX_SIDE_M, "m")?;
+    }
+    for (key, angle) in [("path.start_deg", p.start_deg), ("path.axis_deg", p.axis_deg)] {
+        if let Some(a) = angle {
+            within(key, a, -360.0..=360.0, "degrees")?;
+        }
+    }
+    if let Some(w) = p.wander_s {
+        within("path.wander_s", w, 0.0..=3600.0, "s")?;
+    }
+    if let Some(t) = p.walk_tau_s {
+        within("path.walk_tau_s", t, 0.01..=600.0, "s")?;
+    }
+    if let Some(v) = p.max_climb_mps {
+        within("path.max_climb_mps", v, 0.01..=20.0, "m/s")?;
+    }
+    if let Some(j) = p.max_jerk_mps3 {
+        within("path.max_jerk_mps3", j, 0.01..=1000.0, "m/s³")?;
     }
     Ok(())
 }

@@ -341,7 +341,7 @@ impl Session {
                 let switch = id.push(index, m).filter(|p| p != self.tracker.profile());
                 if let Some(profile) = switch {
                     eprintln!(
-                        "note: drone classified as {} ; tracking with its profile ({})",
+                        "note: drone classified as {}; tracking with its profile ({})",
                         id.chosen().unwrap_or("?"),
                         profile.name
                     );
@@ -492,9 +492,6 @@ impl Session {
     }
 }
 
-/// Keeps `r` in the re-tracking history, which is dropped once it would exceed
-/// [`RETRACK_HISTORY`] items.
-
 /// Says on stderr when a frame moved an array's time base (a reboot, a silence the stream
 /// jumped over, a reboot announced and then withdrawn): the fixes' times jump there.
 fn note_time_base(array: u8, before: &IntakeStats, after: &IntakeStats, config: &IntakeConfig) {
@@ -516,6 +513,8 @@ fn note_time_base(array: u8, before: &IntakeStats, after: &IntakeStats, config: 
     }
 }
 
+/// Keeps `r` in the re-tracking history, which is dropped once it would exceed
+/// [`RETRACK_HISTORY`] items.
 fn keep(history: &mut Option<Vec<Released>>, r: &Released) {
     // Snippets are not kept: 31 a second per array, each 256 samples; a fresh tracker takes
     // the old one's recent snippets instead (`Tracker::fresh`).

@@ -406,6 +406,15 @@ fn beacon_spec(
     if sequence.is_empty() {
         return Err(err(b.sequence.span(), format!("beacon {id}: sequence must name a sequence")));
     }
+    if sequence != aim_dsp::beacon::SEQUENCE_NAME {
+        return Err(err(
+            b.sequence.span(),
+            format!(
+                "beacon {id}: sequence `{sequence}` is unknown; the arrays detect `{}`",
+                aim_dsp::beacon::SEQUENCE_NAME
+            ),
+        ));
+    }
     let level_db = match &b.level_db {
         Some(l) if !BEACON_LEVEL_RANGE_DB.contains(l.get_ref()) => {
             return Err(err(
@@ -633,6 +642,7 @@ loss_db = 15.0
             ("position = [8.0, 0.2, 1.5]", "position = [8.0, 20.0, 1.5]", 11, "outside the room"),
             ("position = [8.0, 0.2, 1.5]", "position = [nan, 0.2, 1.5]", 11, "must be finite"),
             ("sequence = \"aim-beacon-v1\"", "sequence = \" \"", 13, "must name a sequence"),
+            ("sequence = \"aim-beacon-v1\"", "sequence = \"nope\"", 13, "`nope` is unknown"),
             ("sequence = \"aim-beacon-v1\"", "sequenc = \"x\"", 13, "sequenc"),
             ("period_s = 1.0", "period_s = 1.0\nclock_offset_s = 0.2", 13, "clock_offset_s"),
             ("id = 1\nposition = [8.0", "id = 256\nposition = [8.0", 10, "ids are 0 to 255"),

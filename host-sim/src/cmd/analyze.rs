@@ -103,9 +103,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         frames: 0,
     };
     let wav = args.wav.display();
+    let declared = u64::from(reader.duration());
+    // A cut-off file: its header declares more samples than it holds.
+    let cut = |k: usize, e: hound::Error| {
+        anyhow::anyhow!(
+            "{wav}: cannot read sample {} of channel {} ({:.6} s; the header declares {declared} \
+             per channel; is the file cut short?): {e}",
+            k / channels,
+            k % channels,
+            (k / channels) as f64 / fs
+        )
+    };
     if matches!(spec.sample_format, hound::SampleFormat::Float) {
         for (k, s) in reader.samples::<f32>().enumerate() {
-            let x = s.with_context(|| format!("{wav}: bad sample"))?;
+            let x = s.map_err(|e| cut(k, e))?;
             if !x.is_finite() {
                 // Not silence: a recording with NaN or infinite pressure is broken.
                 bail!(
@@ -118,8 +129,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             feed.word(converter.float(x), &mut out)?;
         }
     } else {
-        for s in reader.samples::<i32>() {
-            feed.word(converter.int(s.with_context(|| format!("{wav}: bad sample"))?), &mut out)?;
+        for (k, s) in reader.samples::<i32>().enumerate() {
+            feed.word(converter.int(s.map_err(|e| cut(k, e))?), &mut out)?;
         }
     }
     let (frames, slot) = feed.finish(&mut out)?;
@@ -127,6 +138,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     progress.finish_and_clear();
     if slot != 0 {
         eprintln!("warning: the recording ends inside a frame ({slot} of {channels} channels)");
+    }
+    if printer.counts[0] + printer.counts[1] == 0 {
+        eprintln!(
+            "warning: {wav}: no output; {:.3} s of audio is shorter than one analysis (0.171 s \
+             for a direction, 0.512 s for the BPF)",
+            frames as f64 / fs
+        );
     }
     eprintln!(
         "{}: {:.2} s, {} doa, {} peaks, {} health outputs",

@@ -152,7 +152,8 @@ impl Suite {
 
     /// [`Suite::load`] on text; `path` names the file in errors and anchors relative paths.
     pub fn parse(text: &str, path: &Path) -> anyhow::Result<Self> {
-        let f: SuiteFile = toml::from_str(text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        let f: SuiteFile =
+            toml::from_str(text).map_err(|e| host_sim::scenario::toml_error(path, text, &e))?;
         let err = |m: String| anyhow!("{}: {m}", path.display());
         for (name, list) in
             [("tuning_seeds", &f.tuning_seeds), ("evaluation_seeds", &f.evaluation_seeds)]
@@ -188,8 +189,9 @@ impl Suite {
             return Err(err("filters is empty".into()));
         }
         let period_s = f.period_s.unwrap_or(0.1);
-        if !(period_s > 0.0 && period_s <= 10.0) {
-            return Err(err(format!("period_s {period_s} must be in (0, 10]")));
+        let range = aim_tracker::config::PERIOD_RANGE_S;
+        if !(range.contains(&period_s) && period_s <= 10.0) {
+            return Err(err(format!("period_s {period_s} must be {} to 10 s", range.start())));
         }
         if f.family.is_empty() {
             return Err(err("no [[family]]".into()));
@@ -200,7 +202,7 @@ impl Suite {
             if families.iter().any(|x| x.name == fam.name) {
                 return Err(err(format!("family `{}` appears twice", fam.name)));
             }
-            if fam.name.is_empty() || fam.name.contains(['/', '\\']) {
+            if fam.name.is_empty() || fam.name.contains(['/', '\\']) || fam.name.starts_with('.') {
                 return Err(err(format!("family name `{}` must be a plain word", fam.name)));
             }
             let mut airframe = f.airframe.clone();
@@ -432,6 +434,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .map(|f| f.profile.as_deref().map_or_else(|| Ok(suite_profile.clone()), Profile::from_arg))
         .collect::<anyhow::Result<_>>()?;
+    // Every run's recording must be there before any is re-tracked (not 160 errors later).
+    if let Some(from) = &args.rescore {
+        let missing: Vec<String> = families
+            .iter()
+            .flat_map(|f| seeds.iter().map(move |s| (f, s)))
+            .map(|(f, s)| Path::new("runs").join(&f.name).join(format!("seed-{s}")))
+            .filter(|d| !from.join(d).is_dir())
+            .map(|d| d.display().to_string())
+            .collect();
+        if !missing.is_empty() {
+            bail!(
+                "--rescore {}: no recorded run {} ({} of {} missing; was it a bench of {} with \
+                 --seeds {}?)",
+                from.display(),
+                missing[0],
+                missing.len(),
+                families.len() * seeds.len(),
+                args.suite.display(),
+                args.seeds
+            );
+        }
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let jobs: Vec<(&Family, u64)> =

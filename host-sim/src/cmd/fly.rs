@@ -95,8 +95,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "both" => vec![FilterKind::Paper, FilterKind::Aim],
         other => vec![other.parse().map_err(anyhow::Error::msg).context("--filter")?],
     };
+    aim_tracker::config::check_flag(
+        args.period,
+        "--period",
+        aim_tracker::config::PERIOD_RANGE_S,
+        "s",
+    )?;
     let scenario = Scenario::load(&args.scenario)?;
     crate::cmd::simulate::check_memory(&scenario, args.max_memory_mb)?;
+    // Checked before minutes of simulation, not after.
+    if kinds.contains(&FilterKind::Triangulate) && (scenario.arrays.len() < 2 || args.no_fuse) {
+        anyhow::bail!(
+            "--filter triangulate intersects the DoA rays of several arrays: {} has {} array(s){}",
+            args.scenario.display(),
+            scenario.arrays.len(),
+            if args.no_fuse { " and --no-fuse tracks one" } else { "" }
+        );
+    }
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("fly-{}", scenario.name)));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let profile = match &args.profile {

@@ -277,6 +277,30 @@ fn recording_probabilities(
     Ok(v.probabilities.clone())
 }
 
+/// Most passes over the training set `aim id train` takes.
+const MAX_EPOCHS: usize = 100_000;
+/// Most hidden units of a network (4096: a 4096 × 69 layer and its output, about 1 MB).
+const MAX_HIDDEN: usize = 4096;
+/// Most networks in an ensemble.
+const MAX_MEMBERS: usize = 32;
+
+/// An error now, not after the training, if `path` cannot be written (its folder missing or
+/// read-only): a probe file beside it is made and removed.
+fn check_writable(path: &Path) -> anyhow::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let probe = dir.join(format!(".aim-id-train-{}.probe", std::process::id()));
+    std::fs::write(&probe, b"")
+        .with_context(|| format!("--out {}: cannot write in {}", path.display(), dir.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    if path.is_dir() {
+        bail!("--out {} is a folder; give a file name", path.display());
+    }
+    Ok(())
+}
+
 fn train(a: TrainArgs) -> anyhow::Result<()> {
     let classes = dataset::scan(&a.dir)?;
     if classes.len() < 2 {
@@ -287,14 +311,24 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
     if !(0.0..=1.0).contains(&a.array_share) {
         bail!("--array-share must be in 0..=1, got {}", a.array_share);
     }
+    for (flag, value, range) in [
+        ("--epochs", a.epochs, 1..=MAX_EPOCHS),
+        ("--hidden", a.hidden, 1..=MAX_HIDDEN),
+        ("--members", a.members, 1..=MAX_MEMBERS),
+    ] {
+        if !range.contains(&value) {
+            bail!("{flag} must be {} to {}, not {value}", range.start(), range.end());
+        }
+    }
+    check_writable(&a.out)?;
     let arrivals = (chip_frames && a.array_share > 0.0).then_some((a.array_share, a.seed));
     let (x, y) = load(&classes, chip_frames, arrivals, |n| {
         Ok(names.iter().position(|c| c == n).unwrap_or(0))
     })?;
     let t = model::Training {
         epochs: a.epochs,
-        hidden_units: a.hidden.max(1),
-        members: a.members.max(1),
+        hidden_units: a.hidden,
+        members: a.members,
         seed: a.seed,
         ..model::Training::default()
     };

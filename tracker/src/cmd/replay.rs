@@ -182,6 +182,9 @@ pub fn track_frames<R: std::io::Read>(
     });
     out.flush().context("writing to stdout")?;
     eprintln!("{}", session.stats_json(source.stats()));
+    if source.stats().frames == 0 {
+        eprintln!("warning: {name}: no frame decoded (is it an AIM recording?)");
+    }
     if let Some(m) = mavlink {
         let (sent, failed) = m.counts();
         eprintln!("{{\"kind\":\"mavlink\",\"sent\":{sent},\"failed\":{failed}}}");

@@ -46,6 +46,9 @@ pub fn class_profiles(
     dir: Option<&std::path::Path>,
     classes: &[String],
 ) -> anyhow::Result<Vec<(String, crate::profile::Profile)>> {
+    if let Some(d) = dir.filter(|d| !d.is_dir()) {
+        anyhow::bail!("--id-profiles {}: no such folder", d.display());
+    }
     let mut out = Vec::new();
     for c in classes.iter().filter(|c| *c != NONE_CLASS) {
         let file = dir.map(|d| d.join(format!("{c}.toml"))).filter(|p| p.is_file());

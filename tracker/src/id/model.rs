@@ -414,6 +414,23 @@ impl Model {
                 path.display()
             );
         }
+        // Numbers a hand-edited or damaged file may hold that the sizes do not catch: a zero
+        // or NaN scale makes every probability NaN.
+        if !m.scale.iter().all(|s| s.is_finite() && *s > 0.0) {
+            bail!("{}: every feature scale must be a positive number", path.display());
+        }
+        let weights = m.members.iter().flat_map(|n| {
+            let layers = [&n.hidden, &n.output];
+            layers.into_iter().flat_map(|l| l.weights.iter().flatten().chain(&l.bias))
+        });
+        if !m.mean.iter().chain(weights).all(|v| v.is_finite()) {
+            bail!("{}: a mean or weight is not a finite number", path.display());
+        }
+        for (i, c) in m.classes.iter().enumerate() {
+            if c.trim().is_empty() || m.classes[..i].contains(c) {
+                bail!("{}: class name `{c}` is empty or appears twice", path.display());
+            }
+        }
         if let Some(t) = m.drone_threshold {
             if !(0.0..=1.0).contains(&t) {
                 bail!("{}: drone_threshold {t} is not a probability (0..=1)", path.display());
@@ -472,5 +489,14 @@ mod tests {
         assert_eq!(train_members(&xs, &y, 2, 3, &t, 1), m.members);
         assert_eq!(train_members(&xs, &y, 2, 3, &t, 3), m.members);
         assert!(Model::train(vec!["a".into()], vec!["p".into()], &[vec![1.0]], &[0], t).is_err());
+        // A damaged file is refused before it gives NaN probabilities or loses a class.
+        let refused = |bad: &Model| {
+            let text = serde_json::to_string(bad).unwrap();
+            Model::from_json(&text, Path::new("m.json")).unwrap_err().to_string()
+        };
+        let zero = Model { scale: vec![0.0; 2], ..m.clone() };
+        assert!(refused(&zero).contains("scale"), "{}", refused(&zero));
+        let twice = Model { classes: vec!["p".into(), "p".into(), "none".into()], ..m.clone() };
+        assert!(refused(&twice).contains("appears twice"), "{}", refused(&twice));
     }
 }
