@@ -22,6 +22,9 @@ id = 1
 position = [3.0, 0.5, 0.05]
 "#;
 
+/// BASE's square path without its height (a continuous kind replaces it).
+const SQUARE: &str = "kind = \"square\"\nside_m = 4.0\nstart = [1.0, 1.0]";
+
 /// BASE with `from` replaced by `to` (which must occur).
 fn edit(from: &str, to: &str) -> String {
     assert!(BASE.contains(from), "{from}");
@@ -79,6 +82,15 @@ fn every_scenario_input_of_the_issue_is_refused_by_key() {
             edit("position = [3.0, 0.5, 0.05]", "position = [3.0, 0.5, 0.05]\npositions = [[0.0, 0.0], [0.5, 0.0], [0.0, 0.5], [0.5, 0.5]]"),
             "on-chip pipeline refuses",
         ),
+        // The continuous kinds' numbers (a NaN angle or an infinite centre panicked in the
+        // path's geometry once).
+        (edit(SQUARE, "kind = \"circle\"\ncentre = [5.0, 5.0]\nradius_m = 2.0\nstart_deg = nan"), "path.start_deg NaN"),
+        (edit(SQUARE, "kind = \"circle\"\ncentre = [inf, 5.0]\nradius_m = 2.0"), "path.centre [inf, 5.0]"),
+        (edit(SQUARE, "kind = \"eight\"\ncentre = [5.0, 5.0]\nlength_m = 4.0\naxis_deg = -inf"), "path.axis_deg"),
+        (
+            edit(SQUARE, "kind = \"walk\"\nposition = [5.0, 5.0, 2.0]\narea_min = [nan, 1.0, 1.0]\narea_max = [9.0, 9.0, 3.0]"),
+            "path.area_min",
+        ),
     ];
     for (text, message) in &cases {
         let e = refused(text);
@@ -98,6 +110,17 @@ fn a_refused_value_is_named_with_its_file_and_line() {
         .unwrap();
     let e = format!("{:#}", Scenario::load(&path).unwrap_err());
     assert!(e.starts_with(&format!("{}:14: array[0].position", path.display())), "{e}");
+    // The TOML parser's own errors too, on one line.
+    let path = scratch("typo.toml");
+    std::fs::write(&path, edit("height_m = 2.0", "height_m = 2.0\nspeeed = 2")).unwrap();
+    let e = format!("{:#}", Scenario::load(&path).unwrap_err());
+    assert!(e.starts_with(&format!("{}:10: unknown field `speeed`", path.display())), "{e}");
+    assert!(!e.contains('\n'), "{e}");
+    // A `base` that names the file itself: one message, not the chain eight times.
+    let path = scratch("loop.toml");
+    std::fs::write(&path, "base = \"loop.toml\"\n").unwrap();
+    let e = format!("{:#}", Scenario::load(&path).unwrap_err());
+    assert!(e.contains("loops back to it") && e.matches("loop.toml").count() <= 3, "{e}");
 }
 
 #[test]

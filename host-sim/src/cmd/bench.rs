@@ -577,6 +577,15 @@ scenario = "square10-los.toml"
         let dup = text.replace("[3, 4, 2]", "[4, 4]");
         let e = Suite::parse(&dup, &scenarios().join("x.toml")).unwrap_err().to_string();
         assert!(e.contains("evaluation_seeds lists a seed twice"), "{e}");
+        // An output period that would fill memory with fixes, and a family name that leaves
+        // `runs/`.
+        let ok = text.replace("[3, 4, 2]", "[4]");
+        let tiny = format!("period_s = 1e-9\n{ok}");
+        let e = Suite::parse(&tiny, &scenarios().join("x.toml")).unwrap_err().to_string();
+        assert!(e.contains("period_s 0.000000001 must be 0.001 to 10 s"), "{e}");
+        let up = ok.replace("name = \"a\"", "name = \"..\"");
+        let e = Suite::parse(&up, &scenarios().join("x.toml")).unwrap_err().to_string();
+        assert!(e.contains("must be a plain word"), "{e}");
     }
 
     #[test]
