@@ -104,7 +104,8 @@ fn ci_suite_runs_every_seed_and_filter_and_summarises_them() {
         assert_eq!(a[avail], b[avail]);
     }
     assert!(!again.join("runs/short-leg/seed-2/frames-1.aimraw").exists());
-    // A directory without the stored runs is an error that names the missing file.
+    // A directory without the stored runs is one error, before any run, naming what is
+    // missing.
     let missing = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .arg("bench")
         .arg(root.join("suites/ci.toml"))
@@ -116,7 +117,11 @@ fn ci_suite_runs_every_seed_and_filter_and_summarises_them() {
         .unwrap();
     assert!(!missing.status.success());
     let err = String::from_utf8_lossy(&missing.stderr);
-    assert!(err.contains("site.toml"), "{err}");
+    assert!(
+        err.contains("no recorded run runs/short-leg/seed-") && err.contains("2 of 2"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
     let _ = std::fs::remove_dir_all(&again);
     let _ = std::fs::remove_dir_all(&out);
 }
