@@ -77,8 +77,9 @@ pub struct MavlinkArgs {
     /// `udpout:HOST:PORT` or `serial:PORT:BAUD`.
     #[arg(long, value_name = "ADDRESS")]
     pub mavlink: Option<String>,
-    /// MAVLink system id of the messages (the vehicle's).
-    #[arg(long, default_value_t = aim_tracker::output::mavlink::DEFAULT_SYSTEM_ID)]
+    /// MAVLink system id of the messages (the vehicle's; 1–255, 0 is MAVLink's broadcast).
+    #[arg(long, default_value_t = aim_tracker::output::mavlink::DEFAULT_SYSTEM_ID,
+          value_parser = clap::value_parser!(u8).range(1..))]
     pub mavlink_system_id: u8,
 }
 

@@ -92,6 +92,13 @@ impl Merged<Box<dyn Read + Send>> {
         if paths.iter().any(|p| p == "-") {
             anyhow::bail!("stdin (`-`) cannot be merged with other recordings");
         }
+        // The same recording twice would feed every frame twice.
+        let canonical = |p: &String| std::fs::canonicalize(p).unwrap_or_else(|_| p.into());
+        for (i, p) in paths.iter().enumerate() {
+            if let Some(q) = paths[..i].iter().find(|q| canonical(q) == canonical(p)) {
+                anyhow::bail!("{p} and {q} are the same recording; give each array's once");
+            }
+        }
         let readers = paths
             .iter()
             .map(|p| Ok((p.clone(), super::open_input(p)?)))

@@ -48,11 +48,27 @@ pub fn record(
             Err(e) if is_retryable(&e) => continue,
             Err(e) => break Err(e),
         };
+        // With a frame limit, the bytes up to the delimiter (0x00) that ends the last frame
+        // asked for, no more: the file then holds exactly that many frames.
+        let end = match until.frames {
+            Some(limit) => {
+                let mut pos = 0;
+                while pos < n && deframer.stats().frames < limit {
+                    let stop = buf[pos..n].iter().position(|&b| b == 0).map_or(n, |i| pos + i + 1);
+                    for _ in deframer.feed(&buf[pos..stop]) {}
+                    pos = stop;
+                }
+                pos
+            }
+            None => {
+                for _ in deframer.feed(&buf[..n]) {}
+                n
+            }
+        };
         // Flushed per read: a recording killed by Ctrl-C keeps everything read so far.
-        if let Err(e) = out.write_all(&buf[..n]).and_then(|()| out.flush()) {
+        if let Err(e) = out.write_all(&buf[..end]).and_then(|()| out.flush()) {
             break Err(e);
         }
-        for _ in deframer.feed(&buf[..n]) {}
         progress(deframer.stats());
     };
     (*deframer.stats(), result)
@@ -74,6 +90,10 @@ mod tests {
         for _ in 0..3 {
             input.extend_from_slice(&wire[..n]);
         }
+        let wanted = input.clone();
+        // Frames beyond the limit, in the same read: not written.
+        input.extend_from_slice(&wire[..n]);
+        input.extend_from_slice(&wire[..n / 2]);
         let mut out = Vec::new();
         let mut reads = 0;
         let stats = record(
@@ -84,7 +104,7 @@ mod tests {
         );
         stats.1.unwrap();
         let stats = stats.0;
-        assert_eq!(out, input);
+        assert_eq!(out, wanted);
         assert_eq!(stats.frames, 3);
         assert_eq!(stats.framing_errors + stats.crc_errors, 1, "the noise");
         assert!(reads >= 1);
