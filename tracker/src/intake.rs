@@ -58,9 +58,10 @@ pub struct IntakeConfig {
     /// (`Peaks` end with the newest audio; the span is checked separately).
     pub window_behind_s: f64,
     /// A frame ending more than this after the newest audio of its epoch is out of window, s:
-    /// it waits for `confirm_frames` frames that agree with it. A few frames lost on the link
-    /// open a gap shorter than this; a single frame whose sample index is wrong must not move
-    /// the time base (inside the window it would: the frames after it would then be late).
+    /// it waits for `confirm_frames` frames that agree with it (frames lost on the link: the
+    /// stream goes on after that short wait, on the same time base). A single frame whose
+    /// sample index is wrong must not move the time base (inside the window it would: the
+    /// frames after it would then be late).
     pub window_ahead_s: f64,
     /// An array's first time base is its own clock unless that puts its first frames more
     /// than this from the other arrays' newest audio, s (a board started at another time).
@@ -108,7 +109,8 @@ pub struct IntakeStats {
     /// on with the old count: the old time base was taken back (not counted in
     /// [`Self::new_epochs`]).
     pub reboots_withdrawn: u64,
-    /// Silences the time base followed within one boot (the sample index jumped ahead).
+    /// Jumps ahead the time base followed within one boot (the sample index went on past frames
+    /// lost on the link, or a silence).
     pub gaps: u64,
     /// Frames outside the expected window that no later frames confirmed: set aside.
     pub out_of_window: u64,
@@ -196,14 +198,12 @@ impl Timeline {
     }
 }
 
-/// An array's time base, boot count and release mark, and the link's newest audio, before a
-/// `Hello` announced a reboot.
+/// An array's time base, boot count and release mark before a `Hello` announced a reboot.
 #[derive(Clone, Copy, Debug)]
 struct BeforeReboot {
     timeline: Timeline,
     boot_count: Option<u32>,
     released_until: f64,
-    now: f64,
 }
 
 /// Everything the intake keeps of one array.
@@ -297,7 +297,6 @@ impl Intake {
                         timeline: old,
                         boot_count: previous_boot,
                         released_until: state.released_until,
-                        now: self.now,
                     };
                     // The old boot's inputs all describe audio up to its last: release them.
                     self.stats.inputs += release(state, id, old.newest_s(pose, fs), sink);
@@ -344,11 +343,14 @@ impl Intake {
         let hello = matches!(frame.body, Body::Hello(_));
         if let (Some(before), false) = (state.before_reboot, hello) {
             let new_fits = state.timeline.is_some_and(|tl| in_window(tl.newest_end));
-            if !new_fits && in_window(before.timeline.newest_end) {
+            // Going on with the old count: ending at or after the old boot's newest audio (a
+            // new boot's frames, counted from zero, end before it).
+            let goes_on =
+                end >= before.timeline.newest_end && in_window(before.timeline.newest_end);
+            if !new_fits && goes_on {
                 state.timeline = Some(before.timeline);
                 state.boot_count = before.boot_count;
                 state.released_until = before.released_until;
-                self.now = before.now;
                 self.stats.new_epochs -= 1;
                 self.stats.reboots_announced -= 1;
                 self.stats.reboots_withdrawn += 1;
@@ -370,6 +372,7 @@ impl Intake {
                 let chain = std::mem::take(&mut state.pending);
                 let first = chain.iter().map(|f| f.header.sample_index).min().unwrap_or(start);
                 let chain_end = chain.iter().map(frame_end).max().unwrap_or(first);
+                let earliest_end = chain.iter().map(frame_end).min().unwrap_or(first);
                 state.timeline = Some(match state.timeline {
                     // An array's first time base is its own clock (with the site's offset and
                     // drift), unless the other arrays' newest audio, which arrived with it,
@@ -386,7 +389,10 @@ impl Intake {
                             };
                         Timeline { shift_s, newest_end: first }
                     }
-                    Some(old) if first > old.newest_end => {
+                    // Ahead of the old audio (every frame of the chain ends after it): the
+                    // same count went on after frames lost on the link or a silence. Behind it:
+                    // the count went back, a reboot.
+                    Some(old) if earliest_end > old.newest_end => {
                         self.stats.gaps += 1;
                         Timeline { shift_s: old.shift_s, newest_end: first }
                     }

@@ -503,7 +503,10 @@ fn note_time_base(array: u8, before: &IntakeStats, after: &IntakeStats, config: 
         );
     }
     if after.gaps > before.gaps {
-        eprintln!("note: array {array} was silent; its frames go on after the gap");
+        eprintln!(
+            "note: array {array}'s frames skipped ahead (frames lost on the link, or a silence); \
+             no fix is made across the gap"
+        );
     }
     if after.reboots_withdrawn > before.reboots_withdrawn {
         eprintln!(

@@ -406,3 +406,77 @@ fn a_hello_announcing_a_reboot_while_the_count_goes_on_is_withdrawn() {
     assert!(fixes.iter().all(|f| times.iter().any(|t| (t - f.t).abs() < 1e-9)));
     assert!(fixes.iter().filter(|f| f.t > 2.0).all(|f| on_bearing(f, f.t)));
 }
+
+/// Where a frame's audio ends, sample index.
+fn frame_end(f: &Frame) -> u64 {
+    f.header.sample_index
+        + match &f.body {
+            Body::Doa(d) => u64::from(d.span_samples),
+            Body::Peaks(p) => u64::from(p.span_samples),
+            _ => 0,
+        }
+}
+
+#[test]
+fn frames_lost_on_the_link_cost_a_wait_not_a_new_time_base() {
+    // Half a second of frames lost right after a Peaks frame (whose 0.512 s span is longer
+    // than the window): the frames after the hole wait for confirmation and go on with the
+    // same time base, every fix at a time of the clean track.
+    let mut seq = 0;
+    let frames = link(0, 20 * FS, &mut seq, 3);
+    let clean = run(&frames).0;
+    let p = frames
+        .iter()
+        .position(|f| matches!(f.body, Body::Peaks(_)) && frame_end(f) > 10 * FS)
+        .unwrap();
+    let n = frame_end(&frames[p]);
+    let hole = |f: &&Frame| {
+        matches!(f.body, Body::Doa(_) | Body::Peaks(_))
+            && frame_end(f) > n
+            && frame_end(f) <= n + FS / 2
+    };
+    let lossy: Vec<Frame> = frames.iter().filter(|f| !hole(f)).cloned().collect();
+    assert!(frames.len() - lossy.len() >= 3);
+    let (fixes, s, err) = run(&lossy);
+    assert!(err.is_none(), "{err:?}");
+    let st = *s.intake_stats();
+    assert_eq!((st.new_epochs, st.gaps), (0, 1), "{st:?}");
+    let times: Vec<f64> = clean.iter().map(|f| f.t).collect();
+    assert!(fixes.iter().all(|f| times.iter().any(|t| (t - f.t).abs() < 1e-9)));
+    assert_eq!(fixes.last().map(|f| f.t), clean.last().map(|f| f.t));
+}
+
+#[test]
+fn a_reboot_soon_after_start_with_its_first_frames_lost_stays_a_reboot() {
+    let with_boot = |frames: Vec<Frame>, boot: u32| -> Vec<Frame> {
+        frames
+            .into_iter()
+            .map(|mut f| {
+                if let Body::Hello(h) = &mut f.body {
+                    h.boot_count = boot;
+                }
+                f
+            })
+            .collect()
+    };
+    let mut seq = 0;
+    let mut frames = with_boot(link(0, 57_600, &mut seq, 5), 1); // 1.2 s
+    let mut seq2 = 0;
+    let mut lost = 0;
+    let second: Vec<Frame> = with_boot(link(0, 15 * FS, &mut seq2, 6), 2)
+        .into_iter()
+        .filter(|f| {
+            let drop = matches!(f.body, Body::Doa(_)) && lost < 2;
+            lost += usize::from(drop);
+            !drop
+        })
+        .collect();
+    frames.extend(second);
+    let (fixes, s, err) = run(&frames);
+    assert!(err.is_none(), "{err:?}");
+    let st = *s.intake_stats();
+    assert_eq!((st.new_epochs, st.reboots_announced, st.reboots_withdrawn), (1, 1, 0), "{st:?}");
+    let gap = IntakeConfig::default().epoch_gap_s;
+    let after = fixes.iter().filter(|f| f.t >= 1.2 + gap).count();
+    assert!(after >= 130, "{after} fixes after the reboot");
+}

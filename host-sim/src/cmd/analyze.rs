@@ -141,8 +141,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if printer.counts[0] + printer.counts[1] == 0 {
         eprintln!(
-            "warning: {wav}: no output; {:.3} s of audio is shorter than one analysis (0.171 s \
-             for a direction, 0.512 s for the BPF)",
+            "warning: {wav}: no output; {:.3} s of audio is shorter than one analysis (about \
+             0.17 s for a direction, 0.512 s for the BPF)",
             frames as f64 / fs
         );
     }

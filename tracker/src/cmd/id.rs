@@ -298,6 +298,14 @@ fn check_writable(path: &Path) -> anyhow::Result<()> {
     if path.is_dir() {
         bail!("--out {} is a folder; give a file name", path.display());
     }
+    if path.exists() {
+        // Opened to append, not truncated: an existing model stays as it is until the new
+        // one is written.
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(path)
+            .with_context(|| format!("--out {}: cannot be written", path.display()))?;
+    }
     Ok(())
 }
 
