@@ -253,6 +253,19 @@ fn no_fix_is_invented_across_a_long_silence() {
     assert!(fixes.iter().filter(|f| f.t >= 610.0).count() >= 90);
 }
 
+/// `frames` with every Hello's boot count set to `boot`.
+fn with_boot(frames: Vec<Frame>, boot: u32) -> Vec<Frame> {
+    frames
+        .into_iter()
+        .map(|mut f| {
+            if let Body::Hello(h) = &mut f.body {
+                h.boot_count = boot;
+            }
+            f
+        })
+        .collect()
+}
+
 /// A frame with random header and body fields (all valid on the wire).
 fn random_frame() -> impl Strategy<Value = Frame> {
     let header = (0u8..3, any::<u16>(), prop_oneof![0u64..2_000_000, any::<u64>()])
@@ -324,17 +337,6 @@ proptest! {
 fn a_hello_with_a_new_boot_count_starts_a_new_epoch_even_inside_the_window() {
     // A board that crashes 0.8 s after start and boots again: the second boot's sample indices
     // fall inside the first boot's plausibility window, so only the Hello's boot count tells.
-    let with_boot = |frames: Vec<Frame>, boot: u32| -> Vec<Frame> {
-        frames
-            .into_iter()
-            .map(|mut f| {
-                if let Body::Hello(h) = &mut f.body {
-                    h.boot_count = boot;
-                }
-                f
-            })
-            .collect()
-    };
     let mut seq = 0;
     let mut frames = with_boot(link(0, 38_400, &mut seq, 5), 1);
     let first_boot = frames.len();
@@ -448,17 +450,6 @@ fn frames_lost_on_the_link_cost_a_wait_not_a_new_time_base() {
 
 #[test]
 fn a_reboot_soon_after_start_with_its_first_frames_lost_stays_a_reboot() {
-    let with_boot = |frames: Vec<Frame>, boot: u32| -> Vec<Frame> {
-        frames
-            .into_iter()
-            .map(|mut f| {
-                if let Body::Hello(h) = &mut f.body {
-                    h.boot_count = boot;
-                }
-                f
-            })
-            .collect()
-    };
     let mut seq = 0;
     let mut frames = with_boot(link(0, 57_600, &mut seq, 5), 1); // 1.2 s
     let mut seq2 = 0;
