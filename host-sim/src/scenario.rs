@@ -1247,6 +1247,13 @@ impl Scenario {
 /// `table.key`, `table[k].key` (the k-th `[[table]]`) or a top-level `key`; None when the key
 /// is not in the text (a default, or set in a `base` file).
 pub fn key_line(text: &str, message: &str) -> Option<usize> {
+    // `array 3: …` / `beacon 2: …` (an item's own check): the line of that item's `id`.
+    let mut words = message.split_whitespace();
+    if let (Some(kind @ ("array" | "beacon")), Some(id)) = (words.next(), words.next()) {
+        if let Ok(id) = id.trim_end_matches(':').parse::<u64>() {
+            return item_id_line(text, kind, id);
+        }
+    }
     let word = message.split_whitespace().next()?.trim_end_matches(':');
     let (table, index, key) = match word.split_once('.') {
         Some((table, key)) => match table.split_once('[') {
@@ -1273,6 +1280,24 @@ pub fn key_line(text: &str, message: &str) -> Option<usize> {
             header == table && index.is_none_or(|k| seen.get(table).copied() == Some(k + 1));
         let is_key = l.strip_prefix(key).is_some_and(|rest| rest.trim_start().starts_with('='));
         if in_table && is_key {
+            return Some(i + 1);
+        }
+    }
+    None
+}
+
+/// The line of `id = ID` inside a `[[KIND]]` table of `text`.
+fn item_id_line(text: &str, kind: &str, id: u64) -> Option<usize> {
+    let mut inside = false;
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.starts_with('[') {
+            inside = l.strip_prefix("[[").and_then(|r| r.split("]]").next()).map(str::trim)
+                == Some(kind);
+            continue;
+        }
+        let value = l.strip_prefix("id").map(str::trim_start).and_then(|r| r.strip_prefix('='));
+        if inside && value.and_then(|v| v.trim().parse::<u64>().ok()) == Some(id) {
             return Some(i + 1);
         }
     }

@@ -110,6 +110,13 @@ fn a_refused_value_is_named_with_its_file_and_line() {
         .unwrap();
     let e = format!("{:#}", Scenario::load(&path).unwrap_err());
     assert!(e.starts_with(&format!("{}:14: array[0].position", path.display())), "{e}");
+    // An array's own check names the line of its `id`.
+    let path = scratch("drift.toml");
+    let drift =
+        edit("position = [3.0, 0.5, 0.05]", "position = [3.0, 0.5, 0.05]\nclock_drift_ppm = nan");
+    std::fs::write(&path, drift).unwrap();
+    let e = format!("{:#}", Scenario::load(&path).unwrap_err());
+    assert!(e.starts_with(&format!("{}:13: array 1: clock_drift_ppm NaN", path.display())), "{e}");
     // The TOML parser's own errors too, on one line.
     let path = scratch("typo.toml");
     std::fs::write(&path, edit("height_m = 2.0", "height_m = 2.0\nspeeed = 2")).unwrap();
