@@ -440,17 +440,10 @@ pub struct Scenario {
     pub render: Render,
 }
 
-/// A TOML syntax or type error as one line: `FILE:LINE: message` (the parser's own text spans
-/// several lines, with a drawing of the line).
+/// A TOML syntax or type error as one line, `FILE:LINE: message`
+/// ([`aim_tracker::config::toml_error`], as the tracker's own files report them).
 pub fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> anyhow::Error {
-    let message = e.message().trim().replace('\n', " ");
-    match e.span() {
-        Some(span) => {
-            let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
-            anyhow!("{}:{line}: {message}", path.display())
-        }
-        None => anyhow!("{}: {message}", path.display()),
-    }
+    anyhow::Error::new(aim_tracker::config::toml_error(text, path, e))
 }
 
 /// Whether following `base` links from `from` (at most 8) comes back to `to`.

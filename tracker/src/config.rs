@@ -37,11 +37,18 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(
     text: &str,
     path: &Path,
 ) -> Result<T, ConfigError> {
-    toml::from_str(text).map_err(|e: toml::de::Error| ConfigError {
+    toml::from_str(text).map_err(|e| toml_error(text, path, &e))
+}
+
+/// A TOML syntax or type error in `text` (read from `path`) as a [`ConfigError`] on one line,
+/// with the line the parser points at (the parser's own text spans several lines, with a
+/// drawing of the line).
+pub fn toml_error(text: &str, path: &Path, e: &toml::de::Error) -> ConfigError {
+    ConfigError {
         path: path.to_path_buf(),
         line: e.span().map(|s| line_of(text, s.start)),
-        message: e.message().trim().to_string(),
-    })
+        message: e.message().trim().replace('\n', " "),
+    }
 }
 
 /// Reads a file to a string, with the path in the error.

@@ -12,9 +12,9 @@
 //!   array's previous `Hello` and whose sample index went back (at once: everything the old
 //!   boot left in the reorder stage is released first; should the frames after it go on with
 //!   the old count, the `Hello` lied, the old time base is taken back and the frames follow
-//!   it: [`IntakeStats::reboots_withdrawn`]), or, when that `Hello` was lost, the sample index jumping back (a restarted
-//!   board counts from 0 again) once [`IntakeConfig::confirm_frames`] frames agree on the new
-//!   count. The link carries no wall time, so the new epoch's first frame is placed
+//!   it: [`IntakeStats::reboots_withdrawn`]), or, when that `Hello` was lost, the sample index
+//!   jumping back (a restarted board counts from 0 again) once [`IntakeConfig::confirm_frames`]
+//!   frames agree on the new count. The link carries no wall time, so the new epoch's first frame is placed
 //!   [`IntakeConfig::epoch_gap_s`] after the previous epoch's last audio (the real pause is
 //!   unknown; the tracker restarts across it).
 //! - **a plausibility window**: a frame must end no earlier than
@@ -293,14 +293,13 @@ impl Intake {
                 let went_back = |old: &Timeline| frame.header.sample_index < old.newest_end;
                 if let (true, Some(old)) = (rebooted, state.timeline.filter(went_back)) {
                     let fs = f64::from(state.rate_hz.unwrap_or(DEFAULT_SAMPLE_RATE_HZ));
-                    let mut before = BeforeReboot {
+                    // The old boot's inputs all describe audio up to its last: release them.
+                    self.stats.inputs += release(state, id, old.newest_s(pose, fs), sink);
+                    let before = BeforeReboot {
                         timeline: old,
                         boot_count: previous_boot,
                         released_until: state.released_until,
                     };
-                    // The old boot's inputs all describe audio up to its last: release them.
-                    self.stats.inputs += release(state, id, old.newest_s(pose, fs), sink);
-                    before.released_until = state.released_until;
                     self.stats.out_of_window += state.pending.len() as u64;
                     state.pending.clear();
                     self.stats.new_epochs += 1;

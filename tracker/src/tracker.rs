@@ -397,6 +397,20 @@ pub enum TrackerError {
     },
 }
 
+/// Whether filter `kind` can track `arrays` arrays, their bearings fused or not (the
+/// triangulation baseline needs several); [`Tracker::new`] checks it, and a caller may before
+/// costly work.
+pub fn check_filter_arrays(
+    kind: FilterKind,
+    arrays: usize,
+    fused: bool,
+) -> Result<(), TrackerError> {
+    if kind == FilterKind::Triangulate && (arrays < 2 || !fused) {
+        return Err(TrackerError::TriangulateNeedsArrays { arrays, fused });
+    }
+    Ok(())
+}
+
 impl Tracker {
     /// A tracker for `site` and `profile` with the given filter.
     pub fn new(
@@ -408,12 +422,7 @@ impl Tracker {
         if config.output_period_s.is_nan() || config.output_period_s <= 0.0 {
             return Err(TrackerError::BadPeriod(config.output_period_s));
         }
-        if kind == FilterKind::Triangulate && (site.arrays.len() < 2 || !config.fuse_arrays) {
-            return Err(TrackerError::TriangulateNeedsArrays {
-                arrays: site.arrays.len(),
-                fused: config.fuse_arrays,
-            });
-        }
+        check_filter_arrays(kind, site.arrays.len(), config.fuse_arrays)?;
         let array_index = match config.array_id {
             Some(id) => {
                 site.arrays.iter().position(|a| a.id == id).ok_or(TrackerError::UnknownArray(id))?

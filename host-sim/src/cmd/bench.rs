@@ -401,6 +401,11 @@ fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (S
     (csv, md)
 }
 
+/// Where a run of `family` and `seed` keeps its recording and results, under `--out`.
+fn run_dir(family: &Family, seed: u64) -> PathBuf {
+    Path::new("runs").join(&family.name).join(format!("seed-{seed}"))
+}
+
 /// Runs `host-sim bench`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let suite = Suite::load(&args.suite)?;
@@ -438,8 +443,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(from) = &args.rescore {
         let missing: Vec<String> = families
             .iter()
-            .flat_map(|f| seeds.iter().map(move |s| (f, s)))
-            .map(|(f, s)| Path::new("runs").join(&f.name).join(format!("seed-{s}")))
+            .flat_map(|f| seeds.iter().map(move |&s| run_dir(f, s)))
             .filter(|d| !from.join(d).is_dir())
             .map(|d| d.display().to_string())
             .collect();
@@ -472,7 +476,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let results: Mutex<Vec<RunResult>> = Mutex::new(Vec::new());
     let failures: Mutex<Vec<String>> = Mutex::new(Vec::new());
     let run_one = |fam: &Family, seed: u64| -> anyhow::Result<Vec<RunResult>> {
-        let run_dir = Path::new("runs").join(&fam.name).join(format!("seed-{seed}"));
+        let run_dir = run_dir(fam, seed);
         let dir = args.out.join(&run_dir);
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         let choose = suite.profile.is_none() && fam.profile.is_none();

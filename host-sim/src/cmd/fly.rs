@@ -104,13 +104,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scenario = Scenario::load(&args.scenario)?;
     crate::cmd::simulate::check_memory(&scenario, args.max_memory_mb)?;
     // Checked before minutes of simulation, not after.
-    if kinds.contains(&FilterKind::Triangulate) && (scenario.arrays.len() < 2 || args.no_fuse) {
-        anyhow::bail!(
-            "--filter triangulate intersects the DoA rays of several arrays: {} has {} array(s){}",
-            args.scenario.display(),
-            scenario.arrays.len(),
-            if args.no_fuse { " and --no-fuse tracks one" } else { "" }
-        );
+    for &kind in &kinds {
+        aim_tracker::tracker::check_filter_arrays(kind, scenario.arrays.len(), !args.no_fuse)
+            .with_context(|| format!("{}: --filter", args.scenario.display()))?;
     }
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("fly-{}", scenario.name)));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
