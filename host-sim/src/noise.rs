@@ -28,21 +28,25 @@ pub struct NoiseSource {
 }
 
 impl NoiseSource {
-    /// Checks the numbers; names the problem.
+    /// Checks the numbers; names the problem, starting with the key at fault.
     pub fn validate(&self, sample_rate_hz: f64) -> Result<(), String> {
         if !(self.centre_hz > 0.0
             && self.bandwidth_hz > 0.0
             && self.centre_hz + self.bandwidth_hz / 2.0 < sample_rate_hz / 2.0)
         {
             return Err(format!(
-                "noise source at {:?}: band {} Hz ± {} Hz must lie between 0 and Nyquist",
-                self.position_m.as_slice(),
+                "centre_hz: the band {} Hz ± {} Hz (bandwidth_hz) of the source at {:?} must lie \
+                 between 0 and Nyquist",
                 self.centre_hz,
-                self.bandwidth_hz / 2.0
+                self.bandwidth_hz / 2.0,
+                self.position_m.as_slice(),
             ));
         }
-        if !(self.distance_m > 0.0 && self.spl_db.is_finite()) {
-            return Err("noise source: distance_m must be positive and spl_db finite".into());
+        if self.distance_m.is_nan() || self.distance_m <= 0.0 {
+            return Err(format!("distance_m must be positive, got {}", self.distance_m));
+        }
+        if !self.spl_db.is_finite() {
+            return Err(format!("spl_db must be finite, got {}", self.spl_db));
         }
         Ok(())
     }
@@ -137,14 +141,22 @@ impl NoiseSource {
 }
 
 impl DiffuseNoise {
-    /// Checks the numbers; names the problem.
+    /// Checks the numbers; names the problem, starting with the key at fault.
     pub fn validate(&self, sample_rate_hz: f64) -> Result<(), String> {
         if !(self.low_hz > 0.0 && self.low_hz < self.high_hz && self.high_hz < sample_rate_hz / 2.0)
         {
-            return Err("diffuse_noise: need 0 < low_hz < high_hz < Nyquist".into());
+            return Err(format!(
+                "low_hz: need 0 < low_hz < high_hz < Nyquist ({} Hz), got {} and {} Hz",
+                sample_rate_hz / 2.0,
+                self.low_hz,
+                self.high_hz
+            ));
         }
-        if !(self.directions >= 1 && self.spl_db.is_finite()) {
-            return Err("diffuse_noise: directions must be at least 1 and spl_db finite".into());
+        if self.directions < 1 {
+            return Err("directions must be at least 1".into());
+        }
+        if !self.spl_db.is_finite() {
+            return Err(format!("spl_db must be finite, got {}", self.spl_db));
         }
         Ok(())
     }

@@ -24,15 +24,15 @@ pub struct Obstacle {
 const EDGE_MARGIN_M: f64 = 1e-3;
 
 impl Obstacle {
-    /// Checks the box; names the problem.
+    /// Checks the box; names the problem, starting with the key at fault (`min`, `loss_db`).
     pub fn validate(&self) -> Result<(), String> {
         if (0..3).any(|i| {
             !(self.min[i].is_finite() && self.max[i].is_finite() && self.min[i] < self.max[i])
         }) {
-            return Err(format!("obstacle `{}`: min must be below max on every axis", self.name));
+            return Err(format!("min must be below max on every axis (obstacle `{}`)", self.name));
         }
         if !(self.loss_db.is_finite() && self.loss_db >= 0.0) {
-            return Err(format!("obstacle `{}`: loss_db must be zero or positive", self.name));
+            return Err(format!("loss_db must be zero or positive (obstacle `{}`)", self.name));
         }
         Ok(())
     }

@@ -567,13 +567,18 @@ impl Scenario {
             humidity_percent: a.humidity_percent,
             pressure_pa: a.pressure_pa,
         });
-        let air_ok = (-50.0..=60.0).contains(&air.temperature_c)
-            && (0.0..=100.0).contains(&air.humidity_percent)
-            && (10_000.0..=200_000.0).contains(&air.pressure_pa);
-        if !air_ok {
-            return Err(
-                "air: temperature −50..60 °C, humidity 0..100 %, pressure 10..200 kPa".into()
-            );
+        for (key, value, range, unit) in [
+            ("temperature_c", air.temperature_c, -50.0..=60.0, "°C"),
+            ("humidity_percent", air.humidity_percent, 0.0..=100.0, "%"),
+            ("pressure_pa", air.pressure_pa, 10_000.0..=200_000.0, "Pa"),
+        ] {
+            if !range.contains(&value) {
+                return Err(format!(
+                    "air.{key} must be {} to {} {unit}, got {value}",
+                    range.start(),
+                    range.end()
+                ));
+            }
         }
 
         // Drone: a preset, then overrides.
@@ -811,8 +816,8 @@ impl Scenario {
                 loss_db: o.loss_db,
             })
             .collect();
-        for o in &obstacles {
-            o.validate()?;
+        for (i, o) in obstacles.iter().enumerate() {
+            o.validate().map_err(|e| format!("obstacle[{i}].{e}"))?;
         }
         let noise: Vec<NoiseSource> = f
             .noise
@@ -825,8 +830,8 @@ impl Scenario {
                 distance_m: n.distance_m,
             })
             .collect();
-        for n in &noise {
-            n.validate(fs as f64)?;
+        for (k, n) in noise.iter().enumerate() {
+            n.validate(fs as f64).map_err(|e| format!("noise[{k}].{e}"))?;
         }
         let diffuse_noise = f.diffuse_noise.map(|d| DiffuseNoise {
             spl_db: d.spl_db,
@@ -835,7 +840,7 @@ impl Scenario {
             directions: d.directions,
         });
         if let Some(d) = &diffuse_noise {
-            d.validate(fs as f64)?;
+            d.validate(fs as f64).map_err(|e| format!("diffuse_noise.{e}"))?;
         }
         let mut beacons = Vec::new();
         for (i, b) in f.beacon.into_iter().enumerate() {
@@ -1118,10 +1123,11 @@ impl Scenario {
                 within(&format!("room.size_m[{i}]"), l, 0.1..=MAX_SIDE_M, "m")?;
             }
         }
-        for o in &self.obstacles {
-            point(&format!("obstacle.min (`{}`)", o.name), o.min.as_slice())?;
-            point(&format!("obstacle.max (`{}`)", o.name), o.max.as_slice())?;
-            within(&format!("obstacle.loss_db (`{}`)", o.name), o.loss_db, 0.0..=200.0, "dB")?;
+        for (i, o) in self.obstacles.iter().enumerate() {
+            point(&format!("obstacle[{i}].min (`{}`)", o.name), o.min.as_slice())?;
+            point(&format!("obstacle[{i}].max (`{}`)", o.name), o.max.as_slice())?;
+            let loss = format!("obstacle[{i}].loss_db (`{}`)", o.name);
+            within(&loss, o.loss_db, 0.0..=200.0, "dB")?;
         }
         for (k, n) in self.noise.iter().enumerate() {
             point(&format!("noise[{k}].position"), n.position_m.as_slice())?;

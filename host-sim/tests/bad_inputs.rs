@@ -117,6 +117,38 @@ fn a_refused_value_is_named_with_its_file_and_line() {
     std::fs::write(&path, drift).unwrap();
     let e = format!("{:#}", Scenario::load(&path).unwrap_err());
     assert!(e.starts_with(&format!("{}:13: array 1: clock_drift_ppm NaN", path.display())), "{e}");
+    // The second obstacle's, a noise source's, the diffuse noise's and the air's own checks:
+    // the line of the key at fault (BASE has 14 lines; the additions follow).
+    let extra = [
+        (
+            "[[obstacle]]\nmin = [1.0, 1.0, 0.0]\nmax = [2.0, 2.0, 1.0]\n\
+             [[obstacle]]\nname = \"shelf\"\nmin = [3.0, 3.0, 0.0]\nmax = [2.0, 4.0, 1.0]",
+            "20: obstacle[1].min must be below max on every axis (obstacle `shelf`)",
+        ),
+        (
+            "[[obstacle]]\nmin = [1.0, 1.0, 0.0]\nmax = [2.0, 2.0, 1.0]\nloss_db = -3.0",
+            "18: obstacle[0].loss_db",
+        ),
+        (
+            "[[noise]]\nposition = [1.0, 1.0, 1.0]\ncentre_hz = 100.0\nbandwidth_hz = 10.0\n\
+             spl_db = 60.0\n[[noise]]\nposition = [1.0, 2.0, 1.0]\ncentre_hz = 30000.0\n\
+             bandwidth_hz = 10.0\nspl_db = 60.0",
+            "22: noise[1].centre_hz: the band 30000 Hz",
+        ),
+        (
+            "[[noise]]\nposition = [1.0, 1.0, 1.0]\ncentre_hz = 100.0\nbandwidth_hz = 10.0\n\
+             spl_db = 60.0\ndistance_m = -1.0",
+            "20: noise[0].distance_m must be positive",
+        ),
+        ("[diffuse_noise]\nspl_db = 60.0\ndirections = 0", "17: diffuse_noise.directions"),
+        ("[air]\nhumidity_percent = 120.0", "16: air.humidity_percent must be 0 to 100 %"),
+    ];
+    for (i, (table, want)) in extra.iter().enumerate() {
+        let path = scratch(&format!("item{i}.toml"));
+        std::fs::write(&path, format!("{BASE}{table}\n")).unwrap();
+        let e = format!("{:#}", Scenario::load(&path).unwrap_err());
+        assert!(e.starts_with(&format!("{}:{want}", path.display())), "{e}");
+    }
     // The TOML parser's own errors too, on one line.
     let path = scratch("typo.toml");
     std::fs::write(&path, edit("height_m = 2.0", "height_m = 2.0\nspeeed = 2")).unwrap();
