@@ -49,6 +49,7 @@ fn the_bundled_model_names_held_out_simulated_drones_from_the_chips_frames() {
 fn the_live_verdict_is_the_mean_of_the_last_three_disjoint_windows() {
     // A 6 s clip: 22 frames. The verdict after frame k (0-based, k ≥ 5) averages the windows
     // ending at k, k − 6 and k − 12 where they exist; `window_probabilities` is the newest.
+    // (The type's longer span has no more windows than these in 6 s.)
     let model = default_model();
     let x = clip("consumer-400g", iddata::clip_seed(5, 7_200_000), 16_000, 6.0);
     let frames: Vec<_> =
@@ -83,8 +84,77 @@ fn the_live_verdict_is_the_mean_of_the_last_three_disjoint_windows() {
     }
     live.push(&frames[5]);
     let v = live.verdict().unwrap();
-    assert_eq!(v.windows, 1, "nothing from before the clear is averaged");
-    assert_eq!(v.probabilities, window(5));
+    assert_eq!((v.windows, v.type_windows), (1, 1), "nothing from before the clear is averaged");
+    for (a, b) in v.probabilities.iter().zip(window(5)) {
+        assert!((a - b).abs() < 1e-6, "{:?} against {:?}", v.probabilities, window(5));
+    }
+}
+
+#[test]
+fn a_drones_type_takes_up_to_six_windows_and_is_forgotten_once_it_is_gone() {
+    // 14 s of a Mini 2, then 12 s with no drone, then the Mini 2 again. Oracle: the windows'
+    // probabilities from the model itself; `none`'s is the mean over the last three disjoint
+    // windows, each drone class's the mean over up to six, scaled to the three windows' drone
+    // probability.
+    let model = default_model();
+    let none = model.none_index().unwrap();
+    let frames_of = |class: &str, seed: u64, secs: f64| -> Vec<aim_wire::Mfcc> {
+        let x = clip(class, seed, 16_000, secs);
+        chip::frames_of_recording(&x, 16_000).unwrap().into_iter().map(|f| f.1).collect()
+    };
+    let drone = frames_of("dji-mini-2", iddata::clip_seed(0, 7_300_000), 14.0);
+    let quiet = frames_of("none", iddata::clip_seed(6, 7_300_001), 12.0);
+    let frames: Vec<_> = drone.iter().chain(&quiet).chain(&drone).copied().collect();
+    let window = |end: usize| model.predict(&chip::features(&frames[end + 1 - 6..=end]));
+    let mean = |ends: &[usize]| {
+        let mut m = vec![0.0f32; model.classes.len()];
+        for e in ends {
+            m.iter_mut().zip(window(*e)).for_each(|(a, b)| *a += b / ends.len() as f32);
+        }
+        m
+    };
+    let ends = |k: usize, n: usize, first: usize| -> Vec<usize> {
+        (0..n).filter_map(|j| k.checked_sub(6 * j)).filter(|&e| e >= first).collect()
+    };
+    let mut live = chip::Live::new(model.clone()).unwrap();
+    let (mut none_run, mut type_start, mut restarts) = (0usize, 5usize, 0usize);
+    let mut last = None;
+    for (k, f) in frames.iter().enumerate() {
+        live.push(f);
+        if k < 5 {
+            assert!(live.verdict().is_none());
+            continue;
+        }
+        let v = live.verdict().unwrap();
+        let short = ends(k, 3, 5);
+        let detection = mean(&short);
+        // Gone for 18 verdicts (three windows' worth): the type starts again.
+        none_run = if model.decide(&detection) == none { none_run + 1 } else { 0 };
+        if none_run >= 18 {
+            type_start = k;
+            restarts += 1;
+        }
+        let held = (k - type_start) / 6 + 1;
+        let long = ends(k, held.clamp(3, 6), 5);
+        assert_eq!((v.windows, v.type_windows), (short.len(), long.len()), "frame {k}");
+        let kind = mean(&long);
+        let share: f32 = (0..kind.len()).filter(|&c| c != none).map(|c| kind[c]).sum();
+        for (c, p) in v.probabilities.iter().enumerate() {
+            let want =
+                if c == none { detection[none] } else { kind[c] / share * (1.0 - detection[none]) };
+            assert!((p - want).abs() < 1e-5, "frame {k}, class {c}: {p} against {want}");
+        }
+        assert_eq!(v.class, model.classes[model.decide(&v.probabilities)]);
+        if k + 1 == drone.len() {
+            assert_eq!(v.type_windows, 6, "14 s of a drone: six windows for its type");
+        }
+        last = Some(v.clone());
+    }
+    // The scenario does what it is meant to: the quiet stretch restarted the type, and the
+    // returning drone's type is again averaged over six windows and named.
+    assert!(restarts > 0, "the quiet stretch never restarted the type");
+    let last = last.unwrap();
+    assert_eq!((last.type_windows, last.class.as_str()), (6, "dji-mini-2"));
 }
 
 #[test]

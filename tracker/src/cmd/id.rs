@@ -7,7 +7,7 @@
 //!   on what the chip sends (`Mfcc` frames, windows of 6), the model `aim track --id-model`
 //!   needs.
 //! - `aim id eval DIR --model MODEL [--false-alarm 0.01] [--per-recording
-//!   [--decision-windows 3]] [--set-threshold] [--json]`: the confusion matrix, per-class
+//!   [--decision-windows 3] [--type-windows 6]] [--set-threshold] [--json]`: the confusion matrix, per-class
 //!   precision and recall, the type accuracy among drone clips and the detection ROC (drone
 //!   probability against `none`) with the threshold at the stated false-alarm rate; per window
 //!   of `Mfcc` frames, or per recording by the live verdict at its end ([`chip::Live`]);
@@ -86,8 +86,9 @@ struct EvalArgs {
     #[arg(long)]
     json: bool,
     /// Score each recording once, by the verdict `aim track` would show at its end (a `chip`
-    /// model: the mean over the last three disjoint windows of `Mfcc` frames,
-    /// `aim_tracker::id::chip::DECISION_WINDOWS`), rather than each window on its own.
+    /// model: the drone probability from the last three disjoint windows of `Mfcc` frames,
+    /// `aim_tracker::id::chip::DECISION_WINDOWS`, the type from up to six,
+    /// `aim_tracker::id::chip::TYPE_WINDOWS`), rather than each window on its own.
     #[arg(long)]
     per_recording: bool,
     /// Write the detection threshold at `--false-alarm` on these recordings into the model
@@ -100,6 +101,11 @@ struct EvalArgs {
     #[arg(long, default_value_t = chip::DECISION_WINDOWS as u16, requires = "per_recording",
           value_parser = clap::value_parser!(u16).range(1..=100))]
     decision_windows: u16,
+    /// With `--per-recording` and a `chip` model: most disjoint windows the type of a
+    /// detected drone averages (never fewer than `--decision-windows`).
+    #[arg(long, default_value_t = chip::TYPE_WINDOWS as u16, requires = "per_recording",
+          value_parser = clap::value_parser!(u16).range(1..=100))]
+    type_windows: u16,
 }
 
 #[derive(clap::Args)]
@@ -252,16 +258,18 @@ fn load(
 }
 
 /// The model's verdict on one recording as `aim track` would give it at the recording's
-/// end: for a `chip` model, the recording's `Mfcc` frames through [`chip::Live`] (the mean
-/// over the last `decision_windows` disjoint windows, by default
-/// [`chip::DECISION_WINDOWS`]; a recording shorter than one
-/// window is one window of all its frames, where `aim track` would
-/// still show no verdict); for a `clip` model, the clip's one vector.
+/// end: for a `chip` model, the recording's `Mfcc` frames through [`chip::Live`] (the drone
+/// probability over the last `decision_windows` disjoint windows, by default
+/// [`chip::DECISION_WINDOWS`], the type over up to `type_windows`, by default
+/// [`chip::TYPE_WINDOWS`]; a recording shorter than one window is one window of all its
+/// frames, where `aim track` would still show no verdict); for a `clip` model, the clip's one
+/// vector.
 fn recording_probabilities(
     m: &model::Model,
     path: &Path,
     ex: &Extractor,
     decision_windows: usize,
+    type_windows: usize,
 ) -> anyhow::Result<Vec<f32>> {
     if !m.reads_chip_frames() {
         let v = features_of(path, ex, false, None)?;
@@ -271,7 +279,9 @@ fn recording_probabilities(
     if frames.len() < chip::WINDOW_FRAMES {
         return Ok(m.predict(&chip_windows(path, &frames)?[0]));
     }
-    let mut live = chip::Live::new(m.clone())?.with_decision_windows(decision_windows);
+    let mut live = chip::Live::new(m.clone())?
+        .with_decision_windows(decision_windows)
+        .with_type_windows(type_windows);
     frames.iter().for_each(|f| live.push(f));
     let v = live.verdict().context("a full window gave no verdict")?;
     Ok(v.probabilities.clone())
@@ -381,9 +391,9 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
             let label = index(&c.name)?;
             jobs.extend(c.files.iter().map(|f| (f.as_path(), label)));
         }
-        let windows = usize::from(a.decision_windows);
+        let (windows, types) = (usize::from(a.decision_windows), usize::from(a.type_windows));
         on_every_core(&jobs, |ex, &(path, label)| {
-            Ok((recording_probabilities(&m, path, ex, windows)?, label))
+            Ok((recording_probabilities(&m, path, ex, windows, types)?, label))
         })?
     } else {
         let (x, y) = load(&classes, m.reads_chip_frames(), None, index)?;

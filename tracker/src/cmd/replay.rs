@@ -3,8 +3,9 @@
 //! [`aim_tracker::link::Merged`]) and print one JSON fix per output period:
 //! `{"t":..,"available":..,"x":..,"y":..,"z":..,"motion":"hover|yaw|horizontal|vertical","los":true|false,"drone":..}`
 //! (`t`: the instant it describes; `available`: when the array had sent what it used, s;
-//! `drone`: the classifier's verdict, the mean over the array's last three disjoint windows
-//! of 6 `Mfcc` frames (`aim_tracker::id::chip::DECISION_WINDOWS`),
+//! `drone`: the classifier's verdict, whether a drone is there from the array's last three
+//! disjoint windows of 6 `Mfcc` frames (`aim_tracker::id::chip::DECISION_WINDOWS`), which one
+//! from up to six (`aim_tracker::id::chip::TYPE_WINDOWS`, since the drone was last gone),
 //! `{"class":..,"p":..}`, `"none"`, or `null` before the first full window), then
 //! one statistics line (`{"kind":"stats",...}`: link, intake and latency counts) on stderr.
 

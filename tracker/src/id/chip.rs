@@ -250,23 +250,42 @@ pub fn windows(frames: &[Mfcc]) -> Vec<Vec<f32>> {
 /// three (BENCHMARKS.md, "Issue 16, session 17").
 pub const DECISION_WINDOWS: usize = 3;
 
+/// Disjoint windows the *type* of a detected drone is decided on: up to the newest six (36
+/// frames, 35 hops + 0.512 s = 9.47 s of audio) since the drone was last gone. A drone does not
+/// change type in flight, so its type may take evidence from longer ago than its presence:
+/// whether a drone is there is decided on [`DECISION_WINDOWS`] (it must follow a drone that
+/// comes and goes), which drone it is on up to this many. Six is the most the 10 s tuning
+/// recordings can measure (BENCHMARKS.md, "Issue 16, session 20").
+pub const TYPE_WINDOWS: usize = 6;
+
 /// The live classifier of one array: the model's probabilities of its windows of the last
-/// [`WINDOW_FRAMES`] frames, one per frame, and the verdict on the last [`DECISION_WINDOWS`]
-/// disjoint ones.
+/// [`WINDOW_FRAMES`] frames, one per frame; whether a drone is there from the last
+/// [`DECISION_WINDOWS`] disjoint ones, and which from up to [`TYPE_WINDOWS`] disjoint ones
+/// (see [`Verdict`]).
 #[derive(Debug, Clone)]
 pub struct Live {
     model: super::model::Model,
     frames: std::collections::VecDeque<Mfcc>,
     /// Probabilities of the windows ending at the last frames, newest last (at most
-    /// `(decision_windows − 1)·WINDOW_FRAMES + 1`).
+    /// `(max(decision_windows, type_windows) − 1)·WINDOW_FRAMES + 1`).
     history: std::collections::VecDeque<Vec<f32>>,
-    /// Disjoint windows a verdict averages ([`DECISION_WINDOWS`] unless set).
+    /// Disjoint windows the detection averages ([`DECISION_WINDOWS`] unless set).
     decision_windows: usize,
+    /// Most disjoint windows the type averages ([`TYPE_WINDOWS`] unless set).
+    type_windows: usize,
+    /// Windows (one per frame) since the type's evidence began: since the start, a
+    /// [`Live::clear`], or the end of a run of `none` verdicts as long as the detection's span.
+    type_run: usize,
+    /// Consecutive `none` verdicts up to the newest.
+    none_run: usize,
     verdict: Option<Verdict>,
 }
 
-/// The classifier's verdict: the mean of the model's probabilities over the newest window
-/// and up to [`DECISION_WINDOWS`] − 1 earlier disjoint ones.
+/// The classifier's verdict. Whether a drone is there: the mean probability of `none` over
+/// the newest window and up to [`DECISION_WINDOWS`] − 1 earlier disjoint ones. Which drone:
+/// the drone classes' mean probabilities over up to [`TYPE_WINDOWS`] disjoint windows since
+/// the type's evidence began (never fewer than the detection's; `none` for as long as the
+/// detection's span starts it again), scaled to share the detection's drone probability.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Verdict {
     /// The decided class (`none`: no drone): the most probable, or with the model's
@@ -277,13 +296,16 @@ pub struct Verdict {
     pub probability: f32,
     /// Probability that a drone is there (1 − P(none)), 0–1.
     pub drone_probability: f32,
-    /// Every class's probability, in the model's class order.
+    /// Every class's probability, in the model's class order: `none`'s over the detection's
+    /// windows, the drone classes' share of the rest over the type's.
     pub probabilities: Vec<f32>,
     /// The newest window's probabilities alone, in the model's class order.
     pub window_probabilities: Vec<f32>,
-    /// Windows averaged (1 to the classifier's decision windows, [`DECISION_WINDOWS`] by
-    /// default).
+    /// Windows the detection averaged (1 to the classifier's decision windows,
+    /// [`DECISION_WINDOWS`] by default).
     pub windows: usize,
+    /// Windows the type averaged (at least `windows`, at most the classifier's type windows).
+    pub type_windows: usize,
 }
 
 impl Live {
@@ -300,6 +322,9 @@ impl Live {
             frames: Default::default(),
             history: Default::default(),
             decision_windows: DECISION_WINDOWS,
+            type_windows: TYPE_WINDOWS,
+            type_run: 0,
+            none_run: 0,
             verdict: None,
         })
     }
@@ -307,6 +332,13 @@ impl Live {
     /// The same classifier averaging `n` disjoint windows per verdict (at least 1).
     pub fn with_decision_windows(mut self, n: usize) -> Self {
         self.decision_windows = n.max(1);
+        self
+    }
+
+    /// The same classifier deciding a detected drone's type on up to `n` disjoint windows
+    /// (fewer than the detection's windows: as many as the detection's).
+    pub fn with_type_windows(mut self, n: usize) -> Self {
+        self.type_windows = n.max(1);
         self
     }
 
@@ -325,27 +357,60 @@ impl Live {
             return;
         }
         let window: Vec<Mfcc> = self.frames.iter().copied().collect();
-        while self.history.len() > (self.decision_windows - 1) * WINDOW_FRAMES {
+        let span = self.decision_windows.max(self.type_windows);
+        while self.history.len() > (span - 1) * WINDOW_FRAMES {
             self.history.pop_front();
         }
         self.history.push_back(self.model.predict(&features(&window)));
-        // The newest window and the disjoint ones before it.
+        // The mean over the newest window and up to `k − 1` disjoint ones before it.
         let n = self.history.len();
-        let used: Vec<&Vec<f32>> = (0..self.decision_windows)
-            .filter_map(|k| n.checked_sub(1 + k * WINDOW_FRAMES))
-            .map(|i| &self.history[i])
-            .collect();
-        let mut p = vec![0.0f32; self.model.classes.len()];
-        for w in &used {
-            p.iter_mut().zip(w.iter()).for_each(|(a, b)| *a += b / used.len() as f32);
+        let mean_of = |k: usize| {
+            let used: Vec<&Vec<f32>> = (0..k)
+                .filter_map(|i| n.checked_sub(1 + i * WINDOW_FRAMES))
+                .map(|i| &self.history[i])
+                .collect();
+            let mut p = vec![0.0f32; self.model.classes.len()];
+            for w in &used {
+                p.iter_mut().zip(w.iter()).for_each(|(a, b)| *a += b / used.len() as f32);
+            }
+            (p, used.len())
+        };
+        let (detection, windows) = mean_of(self.decision_windows);
+        let none = self.model.none_index();
+        let detected = none != Some(self.model.decide(&detection));
+        // A drone gone for as long as the detection's span takes its type with it (another
+        // may come); a verdict of `none` now and then (a far drone in a loud hall) does not.
+        self.none_run = if detected { 0 } else { self.none_run + 1 };
+        if self.none_run >= self.decision_windows * WINDOW_FRAMES {
+            self.type_run = 0;
         }
+        self.type_run += 1;
+        // The type: the disjoint windows since its evidence began, at least the detection's,
+        // at most `type_windows`.
+        let held = (self.type_run - 1) / WINDOW_FRAMES + 1;
+        let (kind, type_windows) = mean_of(held.min(self.type_windows).max(self.decision_windows));
+        let p = match none {
+            Some(none) => {
+                let drone = 1.0 - detection[none];
+                let share: f32 = (0..kind.len()).filter(|&c| c != none).map(|c| kind[c]).sum();
+                (0..kind.len())
+                    .map(|c| match c {
+                        c if c == none => detection[none],
+                        _ if share > 0.0 => kind[c] / share * drone,
+                        _ => detection[c],
+                    })
+                    .collect()
+            }
+            None => kind,
+        };
         let best = self.model.decide(&p);
         self.verdict = Some(Verdict {
             class: self.model.classes[best].clone(),
             probability: p[best],
             drone_probability: self.model.drone_probability(&p),
             window_probabilities: self.history[n - 1].clone(),
-            windows: used.len(),
+            windows,
+            type_windows,
             probabilities: p,
         });
     }
@@ -354,6 +419,8 @@ impl Live {
     pub fn clear(&mut self) {
         self.frames.clear();
         self.history.clear();
+        self.type_run = 0;
+        self.none_run = 0;
         self.verdict = None;
     }
 
