@@ -582,17 +582,19 @@ pub fn simulate_to(
 /// Simulates `scenario` straight into `dir` (created if missing): `array-<id>.wav` written
 /// block by block as [`Simulation::write`] would write them (the same bytes), then the truth
 /// and site files. Memory does not grow with the duration but for the flight log and the
-/// truth. A sample that is not finite stops the run, and no WAV file is left behind.
+/// truth. A sample that is not finite stops the run, and so does `stop` once it is set (an
+/// [`aim_tracker::exit::Interrupted`] error); either way no WAV file is left behind.
 pub fn write_streamed(
     scenario: &Scenario,
     options: &Options,
     progress: &ProgressBar,
     dir: &Path,
+    stop: Option<&std::sync::atomic::AtomicBool>,
 ) -> anyhow::Result<Simulation> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let arrays: Vec<(u8, usize)> =
         scenario.arrays.iter().map(|a| (a.id, a.positions.len())).collect();
-    let mut sink = wav::WavSink::create(dir, &arrays, scenario.sample_rate_hz)?;
+    let mut sink = wav::WavSink::create(dir, &arrays, scenario.sample_rate_hz)?.until(stop);
     let sim = simulate_to(scenario, options, progress, &mut sink)?;
     sink.finish()?;
     sim.write_truth_and_site(dir)?;

@@ -2,8 +2,9 @@
 //! [`WavSink`] writes a simulation's arrays as their blocks arrive (hound appends the samples
 //! and patches the header's lengths when finished), into `array-<id>.wav.part` files renamed to
 //! `array-<id>.wav` only when complete: a recording with a sample that is not finite is never
-//! written, and a run that fails leaves no WAV behind.
+//! written, and a run that fails or is interrupted leaves no WAV behind.
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context as _;
 
@@ -55,14 +56,16 @@ struct Open {
 }
 
 /// Streams every array of a simulation to `dir/array-<id>.wav`.
-pub struct WavSink {
+pub struct WavSink<'a> {
     files: Vec<Open>,
+    /// Once set (Ctrl-C, SIGTERM), the next block fails with `Interrupted`.
+    stop: Option<&'a AtomicBool>,
 }
 
-impl WavSink {
+impl<'a> WavSink<'a> {
     /// Creates the `.part` files for arrays `(id, microphones)` at `sample_rate_hz` in `dir`.
     pub fn create(dir: &Path, arrays: &[(u8, usize)], sample_rate_hz: u32) -> anyhow::Result<Self> {
-        let mut sink = Self { files: Vec::new() };
+        let mut sink = Self { files: Vec::new(), stop: None };
         for &(id, mics) in arrays {
             let done = dir.join(format!("array-{id}.wav"));
             let part = dir.join(format!("array-{id}.wav.part"));
@@ -78,6 +81,13 @@ impl WavSink {
             sink.files.push(Open { id, part, done, writer: Some(writer), written: 0 });
         }
         Ok(sink)
+    }
+
+    /// The same sink, stopping at the next block once `stop` is set: the run then fails with
+    /// [`aim_tracker::exit::Interrupted`] and the unfinished files are removed.
+    pub fn until(mut self, stop: Option<&'a AtomicBool>) -> Self {
+        self.stop = stop;
+        self
     }
 
     /// Completes every file (header patched) and gives it its final name.
@@ -103,15 +113,19 @@ impl WavSink {
     }
 }
 
-impl Drop for WavSink {
+impl Drop for WavSink<'_> {
     /// A sink dropped before [`WavSink::finish`] (an error) leaves no file behind.
     fn drop(&mut self) {
         self.abandon();
     }
 }
 
-impl AudioSink for WavSink {
+impl AudioSink for WavSink<'_> {
     fn block(&mut self, array: usize, channels: &[&[f32]]) -> anyhow::Result<()> {
+        if self.stop.is_some_and(|s| s.load(Ordering::SeqCst)) {
+            return Err(anyhow::Error::new(aim_tracker::exit::Interrupted))
+                .context("the unfinished recordings (array-<id>.wav.part) are removed");
+        }
         let f = &mut self.files[array];
         for (m, ch) in channels.iter().enumerate() {
             if let Some(k) = ch.iter().position(|x| !x.is_finite()) {

@@ -44,6 +44,7 @@ fn golden(name: &str, expected: &[(&str, u64)], threads: usize) {
         &host_sim::Options { threads },
         &indicatif::ProgressBar::hidden(),
         &dir,
+        None,
     )
     .unwrap();
     let got = hashes(&dir);
@@ -113,4 +114,34 @@ fn streamed_link_bytes_match_the_whole_recording_through_the_pipeline() {
         assert!(whole.len() > 300, "array {}: {} bytes", rec.id, whole.len());
         assert!(whole == *bytes, "array {}: streamed link bytes differ", rec.id);
     }
+}
+
+/// SIGTERM in the middle of `host-sim simulate` (as Ctrl-C) stops it with status 130 and
+/// leaves no `.part` and no WAV behind; the signal arrives once the first `.part` file exists.
+#[test]
+fn a_signal_stops_simulate_and_removes_its_unfinished_recordings() {
+    let dir = out_dir("sigterm");
+    let scenario = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/square10-los.toml");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["simulate", scenario, "--out", dir.to_str().unwrap(), "--threads", "1"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let part = dir.join("array-1.wav.part");
+    let started = std::time::Instant::now();
+    while !part.exists() {
+        assert!(started.elapsed().as_secs() < 120, "no {} after 120 s", part.display());
+        assert!(child.try_wait().unwrap().is_none(), "simulate ended before it was signalled");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let kill = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    assert!(!part.exists() && !dir.join("array-1.wav").exists(), "a recording was left behind");
 }

@@ -5,7 +5,8 @@
 //! log and the truth; a scenario whose simulation would still need more memory than
 //! `--max-memory-mb` is refused before anything is computed, with the estimate
 //! ([`Scenario::memory_estimate_bytes`]). A recording with a sample that is not finite is never
-//! written.
+//! written. Ctrl-C or SIGTERM stops the run within a block, removes the unfinished
+//! `array-<id>.wav.part` files and exits with status 130.
 use std::path::PathBuf;
 
 use anyhow::Context as _;
@@ -48,11 +49,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scenario = Scenario::load(&args.scenario)?;
     check_memory(&scenario, args.max_memory_mb)?;
     let progress = host_sim::progress_bar("simulating");
+    let stop = aim_tracker::link::serial::interrupt_flag()?;
     let sim = host_sim::write_streamed(
         &scenario,
         &host_sim::Options { threads: args.threads },
         &progress,
         &args.out,
+        Some(&stop),
     )
     .with_context(|| format!("simulating {}", args.scenario.display()))?;
     eprintln!(
