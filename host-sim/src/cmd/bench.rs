@@ -154,7 +154,11 @@ impl Suite {
     pub fn parse(text: &str, path: &Path) -> anyhow::Result<Self> {
         let f: SuiteFile =
             toml::from_str(text).map_err(|e| host_sim::scenario::toml_error(path, text, &e))?;
-        let err = |m: String| anyhow!("{}: {m}", path.display());
+        // The message leads with its key (`filters`, `family[2].name`): its line is named.
+        let err = |m: String| match host_sim::scenario::key_line(text, &m) {
+            Some(line) => anyhow!("{}:{line}: {m}", path.display()),
+            None => anyhow!("{}: {m}", path.display()),
+        };
         for (name, list) in
             [("tuning_seeds", &f.tuning_seeds), ("evaluation_seeds", &f.evaluation_seeds)]
         {
@@ -188,6 +192,16 @@ impl Suite {
         if filters.is_empty() {
             return Err(err("filters is empty".into()));
         }
+        if let Some(i) = (0..filters.len()).find(|&i| filters[..i].contains(&filters[i])) {
+            let first = filters.iter().position(|x| *x == filters[i]).unwrap_or(0);
+            let name = f.filters.as_ref().map_or("", |n| n[i].as_str());
+            return Err(err(format!(
+                "filters lists `{name}` twice (entries {} and {}): each run would be counted as \
+                 two seeds",
+                first + 1,
+                i + 1
+            )));
+        }
         let period_s = f.period_s.unwrap_or(0.1);
         let range = aim_tracker::config::PERIOD_RANGE_S;
         if !(range.contains(&period_s) && period_s <= 10.0) {
@@ -197,13 +211,25 @@ impl Suite {
             return Err(err("no [[family]]".into()));
         }
         let dir = path.parent().unwrap_or(Path::new("."));
+        let profile = f.profile.map(|p| relative_or_name(dir, p));
+        if let Some(p) = &profile {
+            Profile::from_arg(p).map_err(|e| err(format!("profile: {e:#}")))?;
+        }
         let mut families: Vec<Family> = Vec::new();
-        for fam in f.family {
-            if families.iter().any(|x| x.name == fam.name) {
-                return Err(err(format!("family `{}` appears twice", fam.name)));
+        for (k, fam) in f.family.into_iter().enumerate() {
+            if let Some(first) = families.iter().position(|x| x.name == fam.name) {
+                return Err(err(format!(
+                    "family[{k}].name `{}` appears twice (also family {})",
+                    fam.name,
+                    first + 1
+                )));
             }
-            if fam.name.is_empty() || fam.name.contains(['/', '\\']) || fam.name.starts_with('.') {
-                return Err(err(format!("family name `{}` must be a plain word", fam.name)));
+            if !plain_name(&fam.name) {
+                return Err(err(format!(
+                    "family[{k}].name `{}` must be a plain word: letters, digits, `-`, `_`, `+` \
+                     and `.` (not first); it names a folder and a column of the tables",
+                    fam.name.escape_debug()
+                )));
             }
             let mut airframe = f.airframe.clone();
             for (k, v) in fam.airframe {
@@ -216,16 +242,17 @@ impl Suite {
             if !fam.drone.is_empty() {
                 overrides.insert("drone".into(), toml::Value::Table(fam.drone));
             }
-            let profile = fam.profile.map(|p| relative_or_name(dir, p));
-            if let Some(p) = &profile {
-                Profile::from_arg(p)
-                    .with_context(|| format!("{}: family `{}`", path.display(), fam.name))?;
+            let fam_profile = fam.profile.map(|p| relative_or_name(dir, p));
+            if let Some(p) = &fam_profile {
+                Profile::from_arg(p).map_err(|e| {
+                    err(format!("family[{k}].profile (family `{}`): {e:#}", fam.name))
+                })?;
             }
             let scenario = dir.join(&fam.scenario);
             // Check it now (with one seed) rather than after an hour of other runs.
             Scenario::load_with(&scenario, f.evaluation_seeds[0], &overrides)
-                .with_context(|| format!("{}: family `{}`", path.display(), fam.name))?;
-            families.push(Family { name: fam.name, scenario, overrides, profile });
+                .map_err(|e| err(format!("family[{k}].scenario (family `{}`): {e:#}", fam.name)))?;
+            families.push(Family { name: fam.name, scenario, overrides, profile: fam_profile });
         }
         Ok(Self {
             description: f.description,
@@ -233,11 +260,19 @@ impl Suite {
             evaluation_seeds: f.evaluation_seeds,
             filters,
             period_s,
-            profile: f.profile.map(|p| relative_or_name(dir, p)),
+            profile,
             fuse_arrays: f.fuse_arrays.unwrap_or(true),
             families,
         })
     }
+}
+
+/// Whether `name` can name a family: a folder of the runs and a cell of the CSV and markdown
+/// tables (no separators, quotes or control characters).
+fn plain_name(name: &str) -> bool {
+    !name.is_empty()
+        && !name.starts_with('.')
+        && name.chars().all(|c| c.is_alphanumeric() || matches!(c, '-' | '_' | '+' | '.'))
 }
 
 /// A profile path of a suite file: relative to the suite's folder when that names a file,
@@ -590,6 +625,22 @@ scenario = "square10-los.toml"
         let up = ok.replace("name = \"a\"", "name = \"..\"");
         let e = Suite::parse(&up, &scenarios().join("x.toml")).unwrap_err().to_string();
         assert!(e.contains("must be a plain word"), "{e}");
+        // Names that would break a CSV row or a markdown cell, by their line (`name` is on
+        // line 5 of `ok`).
+        for bad in ["a,b", "a|b", "a\\nb", "a\\\"b"] {
+            let odd = ok.replace("name = \"a\"", &format!("name = \"{bad}\""));
+            let e = Suite::parse(&odd, &scenarios().join("x.toml")).unwrap_err().to_string();
+            assert!(e.contains("x.toml:5: family[0].name") && e.contains("plain word"), "{e}");
+        }
+        // A filter listed twice would count each run as two seeds; a family twice.
+        let twice = format!("filters = [\"aim\", \"paper\", \"aim\"]\n{ok}");
+        let e = Suite::parse(&twice, &scenarios().join("x.toml")).unwrap_err().to_string();
+        assert!(e.contains("x.toml:1: filters lists `aim` twice (entries 1 and 3)"), "{e}");
+        let fam = ok.lines().skip(3).collect::<Vec<_>>().join("\n");
+        let e = Suite::parse(&format!("{ok}{fam}\n"), &scenarios().join("x.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("x.toml:8: family[1].name `a` appears twice"), "{e}");
     }
 
     #[test]
@@ -615,7 +666,12 @@ scenario = "square10-los.toml"
         assert!(e.contains("family `fam`") && e.contains("blimp"), "{e}");
         let bad = format!("{ok}profile = \"blimp\"\n");
         let e = format!("{:#}", Suite::parse(&bad, &scenarios().join("x.toml")).unwrap_err());
-        assert!(e.contains("family `fam`") && e.contains("blimp"), "{e}");
+        assert!(e.contains("x.toml:9: family[0].profile (family `fam`)"), "{e}");
+        assert!(e.contains("blimp"), "{e}");
+        // The suite's own profile too, before any run.
+        let bad = format!("profile = \"blimp\"\n{ok}");
+        let e = format!("{:#}", Suite::parse(&bad, &scenarios().join("x.toml")).unwrap_err());
+        assert!(e.contains("x.toml:1: profile: ") && e.contains("blimp"), "{e}");
     }
 
     #[test]
