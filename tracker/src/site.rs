@@ -190,12 +190,22 @@ struct SiteFile {
     #[serde(default)]
     beacon: Vec<toml::Spanned<BeaconEntry>>,
     room: Option<toml::Spanned<RoomEntry>>,
+    /// Informative (the tracker does not use them), but checked like the rest.
     #[serde(default)]
-    #[allow(dead_code)]
-    obstacle: Vec<toml::Value>,
-    /// The NED origin for outputs that need one: read by [`crate::output::ned::Origin`].
-    #[allow(dead_code)]
+    obstacle: Vec<toml::Spanned<ObstacleEntry>>,
+    /// The NED origin for outputs that need one: read by [`crate::output::ned::Origin`], and
+    /// checked by it whenever the site has one.
     origin: Option<toml::Value>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObstacleEntry {
+    #[allow(dead_code)]
+    name: Option<String>,
+    min: [f64; 3],
+    max: [f64; 3],
+    loss_db: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -239,6 +249,18 @@ pub const MAX_CLOCK_OFFSET_S: f64 = 1e10;
 pub const MAX_CLOCK_DRIFT_PPM: f64 = 1000.0;
 /// How far outside the room an array may sit (on or in a wall), m.
 pub const ROOM_TOLERANCE_M: f64 = 0.1;
+/// The microphone positions of a named geometry (array frame, m, at the wire's 0.1 mm), None
+/// for `custom` or an unknown name.
+pub fn preset_positions(name: &str) -> Option<Vec<[f64; 2]>> {
+    let g = match name {
+        "respeaker-6mic" | "respeaker6" => aim_dsp::Geometry::respeaker_6mic(),
+        "respeaker-4mic" | "respeaker4" => aim_dsp::Geometry::respeaker_4mic(),
+        "circle-8mic" | "circle8" => aim_dsp::Geometry::circle_8mic(),
+        _ => return None,
+    };
+    Some(g.positions().iter().map(|p| p.map(|v| (f64::from(v) * 1e4).round() / 1e4)).collect())
+}
+
 /// Microphone-array geometries the tracker and the DSP know by name (plus `custom` with
 /// `positions`).
 pub const KNOWN_GEOMETRIES: &[&str] = &[
@@ -317,6 +339,27 @@ fn array_pose(
         if g.get_ref() == "custom" && a.positions.is_none() {
             return Err(err(g.span(), format!("array {id}: geometry `custom` needs `positions`")));
         }
+        if let (Some(preset), Some(p)) = (preset_positions(g.get_ref()), &a.positions) {
+            // Both given: the same array, to the wire's resolution (1 mm is another array).
+            let same = preset.len() == p.get_ref().len()
+                && preset
+                    .iter()
+                    .zip(p.get_ref())
+                    .all(|(q, m)| (q[0] - m[0]).abs() <= 1e-3 && (q[1] - m[1]).abs() <= 1e-3);
+            if !same {
+                return Err(err(
+                    p.span(),
+                    format!(
+                        "array {id}: positions ({} microphones) are not those of geometry `{}` \
+                         ({} microphones at {preset:?}); give geometry = \"custom\" for another \
+                         layout",
+                        p.get_ref().len(),
+                        g.get_ref(),
+                        preset.len()
+                    ),
+                ));
+            }
+        }
     }
     if let Some(p) = &a.positions {
         let mics = p.get_ref();
@@ -347,7 +390,12 @@ fn array_pose(
     let mut pose =
         ArrayPose::new(id, position, yaw.to_radians(), pitch.to_radians(), roll.to_radians());
     pose.geometry = a.geometry.as_ref().map(|g| g.get_ref().clone());
-    pose.mic_positions_m = a.positions.as_ref().map(|p| p.get_ref().clone()).unwrap_or_default();
+    // A named geometry without positions stands for its positions (checked against the Hello).
+    pose.mic_positions_m = match (&a.positions, &a.geometry) {
+        (Some(p), _) => p.get_ref().clone(),
+        (None, Some(g)) => preset_positions(g.get_ref()).unwrap_or_default(),
+        (None, None) => Vec::new(),
+    };
     pose.clock_offset_s = offset;
     pose.clock_drift_ppm = drift;
     Ok(pose)
@@ -468,6 +516,29 @@ fn parse_site(text: &str, path: &Path) -> Result<(Site, SiteSync), ConfigError> 
     for entry in &file.array {
         arrays.push(array_pose(entry.get_ref(), &arrays, &err)?);
     }
+    if file.origin.is_some() {
+        crate::output::ned::Origin::parse(text, path)?;
+    }
+    for (k, o) in file.obstacle.iter().enumerate() {
+        let e = o.get_ref();
+        let finite =
+            e.min.iter().chain(&e.max).all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M);
+        if !finite || (0..3).any(|i| e.min[i] >= e.max[i]) {
+            return Err(err(
+                o.span(),
+                format!(
+                    "obstacle {}: min {:?} must be below max {:?} on every axis, finite and within \
+                     {MAX_COORDINATE_M} m of the origin",
+                    k + 1,
+                    e.min,
+                    e.max
+                ),
+            ));
+        }
+        if e.loss_db.is_some_and(|l| !(0.0..=200.0).contains(&l)) {
+            return Err(err(o.span(), format!("obstacle {}: loss_db must be 0 to 200 dB", k + 1)));
+        }
+    }
     let room = match &file.room {
         Some(r) => {
             let e = r.get_ref();
@@ -573,7 +644,7 @@ speed_of_sound_mps = 343.2
 [[array]]
 id = 1
 geometry = "respeaker-6mic"
-positions = [[0.0463, 0.0], [0.02315, 0.0401], [-0.02315, 0.0401], [-0.0463, 0.0]]
+positions = [[0.0463, 0.0], [0.02315, 0.040096976], [-0.02315, 0.040096976], [-0.0463, 0.0], [-0.02315, -0.040096976], [0.02315, -0.040096976]]
 position = [10.0, 2.0, 0.05]
 yaw_deg = 0.0
 clock_offset_s = 0.5
@@ -681,6 +752,12 @@ loss_db = 15.0
                 "microphone 1",
             ),
             ("position = [1.0, 1.0, 0.0]\ngeometry = \"custom\"", 4, "needs `positions`"),
+            (
+                "position = [1.0, 1.0, 0.0]\ngeometry = \"respeaker-4mic\"\n\
+                 positions = [[0.0463, 0.0], [0.0, 0.0463], [-0.0463, 0.0], [0.0, -0.0463]]",
+                5,
+                "are not those of geometry `respeaker-4mic`",
+            ),
         ];
         for (array_lines, line, message) in cases {
             let text = base.replace("position = [1.0, 1.0, 0.0]", array_lines);
@@ -688,6 +765,40 @@ loss_db = 15.0
             assert_eq!(e.line, Some(*line), "{array_lines}: {e}");
             assert!(e.message.contains(message), "{array_lines}: {e}");
         }
+        // The informative obstacles and the `[origin]` are checked even when nothing uses them.
+        let tables: &[(&str, usize, &str)] = &[
+            ("[[obstacle]]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, nan, 1.0]", 4, "obstacle 1: min"),
+            ("[[obstacle]]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nbogus = 1", 7, "bogus"),
+            (
+                "[[obstacle]]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nloss_db = -5.0",
+                4,
+                "loss_db",
+            ),
+            (
+                "[origin]\nposition = [nan, 0.0, 0.0]\nx_axis_from_north_deg = 0.0",
+                5,
+                "origin position",
+            ),
+            ("[origin]\nx_axis_from_north_deg = 0.0\nfoo = 1", 6, "foo"),
+        ];
+        for (table, line, message) in tables {
+            let e = Site::parse(&format!("{base}{table}\n"), Path::new("s.toml")).unwrap_err();
+            assert_eq!(e.line, Some(*line), "{table}: {e}");
+            assert!(e.message.contains(message), "{table}: {e}");
+        }
+        // A named geometry without positions stands for its microphones (the Hello is checked
+        // against them); with the preset's own positions it reads.
+        let named = base.replace("0.0]\n", "0.0]\ngeometry = \"circle-8mic\"\n");
+        let site = Site::parse(&named, Path::new("s.toml")).unwrap();
+        let eight = aim_dsp::Geometry::circle_8mic();
+        assert_eq!(site.arrays[0].mic_positions_m.len(), 8);
+        for (m, g) in site.arrays[0].mic_positions_m.iter().zip(eight.positions()) {
+            assert!((m[0] - f64::from(g[0])).abs() < 1e-4 && (m[1] - f64::from(g[1])).abs() < 1e-4);
+        }
+        let six = "geometry = \"respeaker6\"\npositions = [[0.0463, 0.0], [0.02315, 0.040096976], \
+                   [-0.02315, 0.040096976], [-0.0463, 0.0], [-0.02315, -0.040096976], \
+                   [0.02315, -0.040096976]]\n";
+        Site::parse(&base.replace("0.0]\n", &format!("0.0]\n{six}")), Path::new("s.toml")).unwrap();
         let outside = format!("{base}[room]\nsize = [5.0, 5.0, 3.0]\n")
             .replace("[1.0, 1.0, 0.0]", "[1.0, 9.0, 0.0]");
         let e = Site::parse(&outside, Path::new("s.toml")).unwrap_err();

@@ -171,7 +171,7 @@ pub struct Fix {
     pub motion: MotionClass,
     /// Line-of-sight decision.
     pub los: bool,
-    /// What the drone classifier says of the tracked array's latest `Mfcc` window, when the
+    /// The drone classifier's latest verdict on the tracked array's `Mfcc` frames, when the
     /// session classifies ([`crate::session::Session::with_identifier`]); set by the session.
     pub drone: Option<DroneField>,
 }

@@ -95,9 +95,8 @@ fn a_drones_type_takes_up_to_six_windows_and_is_forgotten_once_it_is_gone() {
     // 14 s of a Mini 2, then 12 s with no drone, then the Mini 2 again. Oracle: the windows'
     // probabilities from the model itself; `none`'s is the mean over the last three disjoint
     // windows, each drone class's the mean over up to six, scaled to the three windows' drone
-    // probability.
-    let model = default_model();
-    let none = model.none_index().unwrap();
+    // probability. With the bundled model, and with it without its detection threshold
+    // (presence then by the most probable class of the three windows).
     let frames_of = |class: &str, seed: u64, secs: f64| -> Vec<aim_wire::Mfcc> {
         let x = clip(class, seed, 16_000, secs);
         chip::frames_of_recording(&x, 16_000).unwrap().into_iter().map(|f| f.1).collect()
@@ -105,6 +104,21 @@ fn a_drones_type_takes_up_to_six_windows_and_is_forgotten_once_it_is_gone() {
     let drone = frames_of("dji-mini-2", iddata::clip_seed(0, 7_300_000), 14.0);
     let quiet = frames_of("none", iddata::clip_seed(6, 7_300_001), 12.0);
     let frames: Vec<_> = drone.iter().chain(&quiet).chain(&drone).copied().collect();
+    let mut threshold_less = default_model();
+    threshold_less.drone_threshold = None;
+    for model in [default_model(), threshold_less] {
+        type_span_follows_the_drone(&model, &frames, drone.len());
+    }
+}
+
+/// The oracle of the test above on `frames` (a drone's first `drone_len` frames, none, the
+/// drone again) with `model`.
+fn type_span_follows_the_drone(
+    model: &aim_tracker::id::model::Model,
+    frames: &[aim_wire::Mfcc],
+    drone_len: usize,
+) {
+    let none = model.none_index().unwrap();
     let window = |end: usize| model.predict(&chip::features(&frames[end + 1 - 6..=end]));
     let mean = |ends: &[usize]| {
         let mut m = vec![0.0f32; model.classes.len()];
@@ -117,7 +131,8 @@ fn a_drones_type_takes_up_to_six_windows_and_is_forgotten_once_it_is_gone() {
         (0..n).filter_map(|j| k.checked_sub(6 * j)).filter(|&e| e >= first).collect()
     };
     let mut live = chip::Live::new(model.clone()).unwrap();
-    let (mut none_run, mut type_start, mut restarts) = (0usize, 5usize, 0usize);
+    // The type's evidence: the windows ending after `type_start` (at first, all of them).
+    let (mut none_run, mut type_start, mut restarts) = (0usize, 4usize, 0usize);
     let mut last = None;
     for (k, f) in frames.iter().enumerate() {
         live.push(f);
@@ -134,7 +149,7 @@ fn a_drones_type_takes_up_to_six_windows_and_is_forgotten_once_it_is_gone() {
             type_start = k;
             restarts += 1;
         }
-        let held = (k - type_start) / 6 + 1;
+        let held = (k - type_start).div_ceil(6);
         let long = ends(k, held.clamp(3, 6), 5);
         assert_eq!((v.windows, v.type_windows), (short.len(), long.len()), "frame {k}");
         let kind = mean(&long);
@@ -144,8 +159,13 @@ fn a_drones_type_takes_up_to_six_windows_and_is_forgotten_once_it_is_gone() {
                 if c == none { detection[none] } else { kind[c] / share * (1.0 - detection[none]) };
             assert!((p - want).abs() < 1e-5, "frame {k}, class {c}: {p} against {want}");
         }
-        assert_eq!(v.class, model.classes[model.decide(&v.probabilities)]);
-        if k + 1 == drone.len() {
+        // Presence from the three windows, the type from the longer span.
+        let want = match model.decide(&detection) == none {
+            true => none,
+            false => model.most_probable(&v.probabilities, Some(none)),
+        };
+        assert_eq!(v.class, model.classes[want], "frame {k}");
+        if k + 1 == drone_len {
             assert_eq!(v.type_windows, 6, "14 s of a drone: six windows for its type");
         }
         last = Some(v.clone());

@@ -144,3 +144,38 @@ proptest! {
         }
     }
 }
+
+/// Bytes that hold no frame at all are not a recording: an error naming the file and the
+/// bytes, exit 1. An empty file is (nothing was sent): a warning, exit 0.
+#[test]
+fn bytes_with_no_frame_are_refused_and_an_empty_file_is_not() {
+    let site = scratch("plain-site.toml");
+    std::fs::write(&site, "[[array]]\nid = 1\nposition = [1.0, 2.0, 0.1]\n").unwrap();
+    // A fixed pseudo-random byte string (xorshift), no zero byte: no COBS frame ends in it.
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    let noise: Vec<u8> = (0..20_000)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x % 255) as u8 + 1
+        })
+        .collect();
+    for (name, bytes, code, needle) in [
+        ("noise.bin", noise, 1, "20000 bytes and no AIM frame in them"),
+        ("empty.bin", Vec::new(), 0, "empty, no frame to track"),
+    ] {
+        let path = scratch(name);
+        std::fs::write(&path, bytes).unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_aim"))
+            .args(["replay", "--no-id", "--site"])
+            .arg(&site)
+            .arg(&path)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{name}: {stderr}");
+        assert!(stderr.contains(needle) && stderr.contains(name), "{name}: {stderr}");
+        assert!(out.stdout.is_empty(), "{name}: fixes from no frame");
+    }
+}

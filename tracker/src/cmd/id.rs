@@ -97,7 +97,8 @@ struct EvalArgs {
     /// Choose it on tuning recordings, with `--per-recording` for the live verdict.
     #[arg(long)]
     set_threshold: bool,
-    /// With `--per-recording` and a `chip` model: disjoint windows the verdict averages.
+    /// With `--per-recording` and a `chip` model: disjoint windows whether a drone is there
+    /// is decided on (also the fewest the type is).
     #[arg(long, default_value_t = chip::DECISION_WINDOWS as u16, requires = "per_recording",
           value_parser = clap::value_parser!(u16).range(1..=100))]
     decision_windows: u16,

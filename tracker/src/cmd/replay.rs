@@ -184,8 +184,8 @@ pub fn track_frames<R: std::io::Read>(
     });
     out.flush().context("writing to stdout")?;
     eprintln!("{}", session.stats_json(source.stats()));
-    if source.stats().frames == 0 {
-        eprintln!("warning: {name}: no frame decoded (is it an AIM recording?)");
+    if live && source.stats().frames == 0 {
+        eprintln!("warning: {name}: no frame decoded (is it an AIM link?)");
     }
     if let Some(m) = mavlink {
         let (sent, failed) = m.counts();
@@ -213,6 +213,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         mavlink.as_ref(),
         &mut |fix| super::serve::show(&map, fix),
     );
+    // Bytes that held no frame at all are not a recording (an empty one is: nothing was sent).
+    let stats = source.stats();
+    let name = args.frames.join(" + ");
+    let result = match result {
+        Ok(()) if stats.frames == 0 && stats.bytes > 0 => Err(anyhow::anyhow!(
+            "{name}: {} bytes and no AIM frame in them (not a recording of the link?)",
+            stats.bytes
+        )),
+        Ok(()) if stats.frames == 0 => {
+            eprintln!("warning: {name}: empty, no frame to track");
+            Ok(())
+        }
+        other => other,
+    };
     if let Some(map) = map {
         map.end();
         if result.is_ok() {

@@ -243,9 +243,10 @@ pub fn windows(frames: &[Mfcc]) -> Vec<Vec<f32>> {
     frames.chunks_exact(WINDOW_FRAMES).map(features).collect()
 }
 
-/// Windows whose probabilities a live verdict averages: the newest window and the ones
-/// ending [`WINDOW_FRAMES`] and 2·[`WINDOW_FRAMES`] frames before it (disjoint windows, 18
-/// frames, 17 hops + 0.512 s = 4.86 s of audio). A drone does not come and go within
+/// Windows whose probabilities decide whether a live verdict names a drone at all: the newest
+/// window and the ones ending [`WINDOW_FRAMES`] and 2·[`WINDOW_FRAMES`] frames before it
+/// (disjoint windows, 18 frames, 17 hops + 0.512 s = 4.86 s of audio); also the fewest the
+/// type is decided on ([`TYPE_WINDOWS`]). A drone does not come and go within
 /// seconds, and one window of 2 s at 15 m over a 70 dB hall is misread far more often than
 /// three (BENCHMARKS.md, "Issue 16, session 17").
 pub const DECISION_WINDOWS: usize = 3;
@@ -329,7 +330,9 @@ impl Live {
         })
     }
 
-    /// The same classifier averaging `n` disjoint windows per verdict (at least 1).
+    /// The same classifier deciding whether a drone is there on `n` disjoint windows (at
+    /// least 1); a drone is gone, and its type's evidence starts again, after `n` windows'
+    /// worth of `none` verdicts.
     pub fn with_decision_windows(mut self, n: usize) -> Self {
         self.decision_windows = n.max(1);
         self
@@ -379,15 +382,17 @@ impl Live {
         let none = self.model.none_index();
         let detected = none != Some(self.model.decide(&detection));
         // A drone gone for as long as the detection's span takes its type with it (another
-        // may come); a verdict of `none` now and then (a far drone in a loud hall) does not.
+        // may come; the windows heard while it was gone are not its evidence); a verdict of
+        // `none` now and then (a far drone in a loud hall) does not.
         self.none_run = if detected { 0 } else { self.none_run + 1 };
         if self.none_run >= self.decision_windows * WINDOW_FRAMES {
             self.type_run = 0;
+        } else {
+            self.type_run += 1;
         }
-        self.type_run += 1;
         // The type: the disjoint windows since its evidence began, at least the detection's,
         // at most `type_windows`.
-        let held = (self.type_run - 1) / WINDOW_FRAMES + 1;
+        let held = self.type_run.div_ceil(WINDOW_FRAMES);
         let (kind, type_windows) = mean_of(held.min(self.type_windows).max(self.decision_windows));
         let p = match none {
             Some(none) => {
@@ -403,7 +408,13 @@ impl Live {
             }
             None => kind,
         };
-        let best = self.model.decide(&p);
+        // Presence from the detection's windows alone, also for a model without a threshold
+        // (whose plain most probable class of `p` could differ).
+        let best = match none {
+            Some(none) if detected => self.model.most_probable(&p, Some(none)),
+            Some(none) => none,
+            None => self.model.decide(&p),
+        };
         self.verdict = Some(Verdict {
             class: self.model.classes[best].clone(),
             probability: p[best],

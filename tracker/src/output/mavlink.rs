@@ -118,6 +118,13 @@ impl MavlinkOut {
         if !(address.starts_with("udpout:") || address.starts_with("serial:")) {
             anyhow::bail!("--mavlink {address}: give {ADDRESS_FORMS}");
         }
+        if address.starts_with("udpout:") {
+            // Port 0 opens but every send fails: refused here rather than counted later.
+            let port = address.rsplit(':').next().and_then(|p| p.parse::<u16>().ok());
+            if port.is_none_or(|p| p == 0) {
+                anyhow::bail!("--mavlink {address}: the port must be 1 to 65535");
+            }
+        }
         let mut link: Link = ::mavlink::connect(address)
             .map_err(|e| anyhow::anyhow!("--mavlink {address}: cannot open: {e}"))?;
         link.set_protocol_version(MavlinkVersion::V2);
@@ -189,7 +196,11 @@ impl Drop for MavlinkOut {
 
 fn note_failure(failures: &AtomicU64, e: &dyn std::fmt::Display) {
     if failures.fetch_add(1, Ordering::Relaxed) == 0 {
-        eprintln!("warning: MAVLink send failed ({e}); tracking goes on, further failures counted");
+        // One line: the library's error may be a multi-line debug dump.
+        let e = e.to_string().split_whitespace().collect::<Vec<_>>().join(" ");
+        crate::exit::note(&format!(
+            "warning: MAVLink send failed ({e}); tracking goes on, further failures counted"
+        ));
     }
 }
 
@@ -264,5 +275,9 @@ mod tests {
         assert!(e.to_string().contains("udpout:HOST:PORT"), "{e}");
         let e = MavlinkOut::open("serial:/nonexistent/tty:57600", origin, 1).unwrap_err();
         assert!(e.to_string().contains("cannot open"), "{e}");
+        for port in ["0", "65536", "x", ""] {
+            let e = MavlinkOut::open(&format!("udpout:127.0.0.1:{port}"), origin, 1).unwrap_err();
+            assert!(e.to_string().contains("the port must be 1 to 65535"), "{port}: {e}");
+        }
     }
 }
