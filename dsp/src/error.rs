@@ -71,7 +71,11 @@ impl fmt::Display for ConfigError {
             Self::CoincidentMics(i, j) => {
                 write!(f, "microphones {i} and {j} are less than 1 mm apart")
             }
-            Self::CollinearMics => write!(f, "the microphones lie on one line"),
+            Self::CollinearMics => write!(
+                f,
+                "the microphones lie on or near one line (their spread across it is under a \
+                 twentieth of that along it; a microphone far from the others does that too)"
+            ),
             Self::ApertureTooLarge { aperture_m } => write!(
                 f,
                 "array aperture {aperture_m} m exceeds the {} sample lag range",
