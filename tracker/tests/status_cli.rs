@@ -105,3 +105,23 @@ fn a_status_period_out_of_range_is_refused_naming_the_flag() {
     }
     let _ = std::fs::remove_file(&site);
 }
+
+/// A recording shorter than the output period gives no fix, and says so (not a silent,
+/// successful empty output).
+#[test]
+fn audio_that_ends_before_the_first_fix_is_said() {
+    let dir = std::env::temp_dir().join(format!("aim-status-period-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (site, rec) = (dir.join("site.toml"), dir.join("short.aimraw"));
+    std::fs::write(&site, common::SITE_TOML).unwrap();
+    let mut seq = 0;
+    std::fs::write(&rec, common::bytes(&common::link(0, 4 * common::FS, &mut seq, 5))).unwrap();
+    for (period, warned) in [("0.1", false), ("30", true)] {
+        let out = common::aim_replay_output(&rec, &site, &["--no-id", "--period", period]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert_eq!(out.stdout.is_empty(), warned, "--period {period}");
+        assert_eq!(stderr.contains("inputs and no fix"), warned, "--period {period}: {stderr}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

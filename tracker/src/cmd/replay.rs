@@ -187,6 +187,13 @@ pub fn track_frames<R: std::io::Read>(
     if live && source.stats().frames == 0 {
         eprintln!("warning: {name}: no frame decoded (is it an AIM link?)");
     }
+    let inputs = session.intake_stats().inputs;
+    if inputs > 0 && session.fix_stats().fixes == 0 {
+        eprintln!(
+            "warning: {name}: {inputs} inputs and no fix: the audio ended before the first \
+             output instant (--period longer than the recording?) or held no bearing"
+        );
+    }
     if let Some(m) = mavlink {
         let (sent, failed) = m.counts();
         eprintln!("{{\"kind\":\"mavlink\",\"sent\":{sent},\"failed\":{failed}}}");
