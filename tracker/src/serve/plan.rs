@@ -95,9 +95,10 @@ mod tests {
             "[[array]]\nid = 3\nposition = [1.0, 2.0, 0.0]\n[[obstacle]]\nmin = [1, 2]\n",
         )
         .unwrap();
-        let site = Site::load(&path).unwrap();
-        let e = plan_json(&site, &path).unwrap_err().to_string();
-        assert!(e.contains("obstacle 1 needs min = [x, y, z]"), "{e}");
+        // The site file's own check refuses it first, by its line.
+        let e = Site::load(&path).unwrap_err();
+        assert_eq!(e.line, Some(5), "{e}");
+        assert!(e.message.contains("expected an array of length 3"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
