@@ -376,7 +376,7 @@ fn a_bad_scenario_names_its_file_and_line() {
     )
     .unwrap();
     let e = format!("{:#}", Scenario::load(&path).unwrap_err());
-    assert!(e.contains("bad.toml:6: invalid type") && !e.contains('\n'), "{e}");
+    assert!(e.contains("bad.toml:6: side_m: invalid type") && !e.contains('\n'), "{e}");
     std::fs::write(&path, "[drone]\npreset = \"dji-mini-3\"\n[path]\nkind = \"hover\"\nposition = [0, 0, 1]\n[[array]]\nid = 1\nposition = [0, 0, 0]\n").unwrap();
     let e = format!("{:#}", Scenario::load(&path).unwrap_err());
     assert!(e.contains("bad.toml") && e.contains("dji-mini-3"), "{e}");

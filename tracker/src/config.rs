@@ -44,11 +44,24 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(
 /// with the line the parser points at (the parser's own text spans several lines, with a
 /// drawing of the line).
 pub fn toml_error(text: &str, path: &Path, e: &toml::de::Error) -> ConfigError {
-    ConfigError {
-        path: path.to_path_buf(),
-        line: e.span().map(|s| line_of(text, s.start)),
-        message: e.message().trim().replace('\n', " "),
-    }
+    let line = e.span().map(|s| line_of(text, s.start));
+    let message = e.message().trim().replace('\n', " ");
+    // A type error names the value, not its key (`invalid type: string "north", expected
+    // f64`): the key of that line leads the message when the message does not name it.
+    let key = line
+        .and_then(|l| text.lines().nth(l - 1))
+        .and_then(|l| l.split_once('='))
+        .map(|(k, _)| k.trim())
+        .filter(|k| {
+            !k.is_empty()
+                && !k.starts_with(['[', '#'])
+                && k.chars().all(|c| c.is_alphanumeric() || matches!(c, '_' | '-' | '.' | '"'))
+        });
+    let message = match key {
+        Some(k) if !message.contains(&format!("`{k}`")) => format!("{k}: {message}"),
+        _ => message,
+    };
+    ConfigError { path: path.to_path_buf(), line, message }
 }
 
 /// Reads a file to a string, with the path in the error.
@@ -115,5 +128,24 @@ mod tests {
             assert!(e.starts_with("--period must be 0.001 to 60.0 s, not "), "{e}");
         }
         assert_eq!(check_flag(0.1, "--period", PERIOD_RANGE_S, "s").unwrap(), 0.1);
+    }
+
+    /// A type error leads with its key and its line; an error that names its key already
+    /// (unknown or missing field) is left as it is.
+    #[test]
+    fn toml_errors_name_the_key_and_the_line() {
+        #[derive(serde::Deserialize, Debug)]
+        #[serde(deny_unknown_fields)]
+        #[allow(dead_code)]
+        struct T {
+            a: f64,
+            yaw_deg: f64,
+        }
+        let e = parse_toml::<T>("a = 1.0\nyaw_deg = \"north\"\n", Path::new("t.toml")).unwrap_err();
+        assert_eq!(e.line, Some(2), "{e}");
+        assert!(e.message.starts_with("yaw_deg: invalid type: string \"north\""), "{e}");
+        let e =
+            parse_toml::<T>("a = 1.0\nyaw_deg = 2.0\nb = 3\n", Path::new("t.toml")).unwrap_err();
+        assert_eq!((e.line, e.message.starts_with("unknown field `b`")), (Some(3), true), "{e}");
     }
 }
