@@ -97,7 +97,7 @@ pub struct Profile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ProfileFile {
-    name: String,
+    name: toml::Spanned<String>,
     structure: Structure,
     blades: toml::Spanned<u32>,
     mass_kg: toml::Spanned<f64>,
@@ -139,6 +139,13 @@ impl Profile {
                 path,
             )
         };
+        if f.name.get_ref().trim().is_empty() {
+            return Err(ConfigError {
+                path: path.to_path_buf(),
+                line: Some(line_of(text, f.name.span().start)),
+                message: "name must not be empty (the tracker's messages name the profile)".into(),
+            });
+        }
         let blades = *f.blades.get_ref();
         if !(1..=8).contains(&blades) {
             return Err(ConfigError {
@@ -162,7 +169,7 @@ impl Profile {
             path,
         )?;
         let profile = Self {
-            name: f.name,
+            name: f.name.into_inner(),
             structure: f.structure,
             blades,
             mass_kg: positive(&f.mass_kg, "mass_kg", 1000.0)?,
@@ -315,6 +322,7 @@ mod tests {
             ("k_v = 2.27e-5", "k_v = 1e-320", "hover BPF"),
             ("bpf_min_hz = 200.0", "bpf_min_hz = 1e-300", "bpf_min_hz must be 10 to"),
             ("", "wake_loss_per_mps = 1e9", "wake_loss_per_mps must be"),
+            ("name = \"DJI Mini 2\"", "name = \" \"", "name must not be empty"),
         ] {
             // An empty `from` appends the line (the bundled profile has no wake constant, k_h
             // or i_z).
