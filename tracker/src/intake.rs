@@ -513,15 +513,9 @@ fn check_hello(
         let hello_mics: Vec<[f64; 2]> = (0..hello.mic_positions_decimm.len())
             .filter_map(|i| hello.mic_position_m(i))
             // At the wire's 0.1 mm, as the Hello gave them.
-            .map(|p| [0, 1].map(|i| (f64::from(p[i]) * 1e4).round() / 1e4))
+            .map(|p| p.map(crate::site::at_wire_resolution))
             .collect();
-        // The wire quantises to 0.1 mm; 1 mm is a different array.
-        let same = hello_mics.len() == site_mics.len()
-            && hello_mics
-                .iter()
-                .zip(site_mics)
-                .all(|(h, s)| (h[0] - s[0]).abs() <= 1e-3 && (h[1] - s[1]).abs() <= 1e-3);
-        if !same {
+        if !crate::site::same_microphones(&hello_mics, site_mics) {
             return Err(IntakeError::Geometry {
                 array: id,
                 hello: hello_mics,

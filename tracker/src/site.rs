@@ -201,11 +201,67 @@ struct SiteFile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ObstacleEntry {
-    #[allow(dead_code)]
     name: Option<String>,
     min: [f64; 3],
     max: [f64; 3],
     loss_db: Option<f64>,
+}
+
+/// An obstacle of a site file: informative (the live map draws it; the tracker does not use
+/// it). World ENU metres.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SiteObstacle {
+    /// Its name (`obstacle` when the file gives none).
+    pub name: String,
+    /// Lowest corner, m.
+    pub min: [f64; 3],
+    /// Highest corner, m.
+    pub max: [f64; 3],
+}
+
+/// The checked `[[obstacle]]` tables of site TOML `text` (`path` names it in errors); the
+/// other tables are read but not checked here ([`Site::parse`] checks the whole file).
+pub fn obstacles(text: &str, path: &Path) -> Result<Vec<SiteObstacle>, ConfigError> {
+    let file: SiteFile = parse_toml(text, path)?;
+    checked_obstacles(&file.obstacle, text, path)
+}
+
+/// Each obstacle's corners finite, within [`MAX_COORDINATE_M`] and in order, its loss 0 to
+/// 200 dB; an error names the obstacle and its line.
+fn checked_obstacles(
+    list: &[toml::Spanned<ObstacleEntry>],
+    text: &str,
+    path: &Path,
+) -> Result<Vec<SiteObstacle>, ConfigError> {
+    let err = |span: std::ops::Range<usize>, message: String| ConfigError {
+        path: path.to_path_buf(),
+        line: Some(line_of(text, span.start)),
+        message,
+    };
+    let mut out = Vec::new();
+    for (k, o) in list.iter().enumerate() {
+        let e = o.get_ref();
+        let finite =
+            e.min.iter().chain(&e.max).all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M);
+        if !finite || (0..3).any(|i| e.min[i] >= e.max[i]) {
+            return Err(err(
+                o.span(),
+                format!(
+                    "obstacle {}: min {:?} must be below max {:?} on every axis, finite and within \
+                     {MAX_COORDINATE_M} m of the origin",
+                    k + 1,
+                    e.min,
+                    e.max
+                ),
+            ));
+        }
+        if e.loss_db.is_some_and(|l| !(0.0..=200.0).contains(&l)) {
+            return Err(err(o.span(), format!("obstacle {}: loss_db must be 0 to 200 dB", k + 1)));
+        }
+        let name = e.name.clone().unwrap_or_else(|| "obstacle".into());
+        out.push(SiteObstacle { name, min: e.min, max: e.max });
+    }
+    Ok(out)
 }
 
 #[derive(Deserialize)]
@@ -258,7 +314,19 @@ pub fn preset_positions(name: &str) -> Option<Vec<[f64; 2]>> {
         "circle-8mic" | "circle8" => aim_dsp::Geometry::circle_8mic(),
         _ => return None,
     };
-    Some(g.positions().iter().map(|p| p.map(|v| (f64::from(v) * 1e4).round() / 1e4)).collect())
+    Some(g.positions().iter().map(|p| p.map(at_wire_resolution)).collect())
+}
+
+/// A microphone coordinate at the wire's 0.1 mm (as a `Hello` gives it), m.
+pub fn at_wire_resolution(v: f32) -> f64 {
+    (f64::from(v) * 1e4).round() / 1e4
+}
+
+/// Whether two lists of microphone positions (m) are the same array: as many microphones,
+/// each within 1 mm on both axes (the wire quantises to 0.1 mm; 1 mm is another array).
+pub fn same_microphones(a: &[[f64; 2]], b: &[[f64; 2]]) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(p, q)| (p[0] - q[0]).abs() <= 1e-3 && (p[1] - q[1]).abs() <= 1e-3)
 }
 
 /// Microphone-array geometries the tracker and the DSP know by name (plus `custom` with
@@ -340,13 +408,8 @@ fn array_pose(
             return Err(err(g.span(), format!("array {id}: geometry `custom` needs `positions`")));
         }
         if let (Some(preset), Some(p)) = (preset_positions(g.get_ref()), &a.positions) {
-            // Both given: the same array, to the wire's resolution (1 mm is another array).
-            let same = preset.len() == p.get_ref().len()
-                && preset
-                    .iter()
-                    .zip(p.get_ref())
-                    .all(|(q, m)| (q[0] - m[0]).abs() <= 1e-3 && (q[1] - m[1]).abs() <= 1e-3);
-            if !same {
+            // Both given: they must be the same array.
+            if !same_microphones(&preset, p.get_ref()) {
                 return Err(err(
                     p.span(),
                     format!(
@@ -519,26 +582,7 @@ fn parse_site(text: &str, path: &Path) -> Result<(Site, SiteSync), ConfigError> 
     if file.origin.is_some() {
         crate::output::ned::Origin::parse(text, path)?;
     }
-    for (k, o) in file.obstacle.iter().enumerate() {
-        let e = o.get_ref();
-        let finite =
-            e.min.iter().chain(&e.max).all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M);
-        if !finite || (0..3).any(|i| e.min[i] >= e.max[i]) {
-            return Err(err(
-                o.span(),
-                format!(
-                    "obstacle {}: min {:?} must be below max {:?} on every axis, finite and within \
-                     {MAX_COORDINATE_M} m of the origin",
-                    k + 1,
-                    e.min,
-                    e.max
-                ),
-            ));
-        }
-        if e.loss_db.is_some_and(|l| !(0.0..=200.0).contains(&l)) {
-            return Err(err(o.span(), format!("obstacle {}: loss_db must be 0 to 200 dB", k + 1)));
-        }
-    }
+    checked_obstacles(&file.obstacle, text, path)?;
     let room = match &file.room {
         Some(r) => {
             let e = r.get_ref();

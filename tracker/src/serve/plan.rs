@@ -8,47 +8,18 @@ use serde_json::{json, Value};
 use crate::site::Site;
 
 /// The plan of `site`, read from the file at `path` (obstacles are informative in a site file:
-/// [`Site`] does not keep them, so they are read from the text here):
+/// [`Site`] does not keep them, so they are read from the text here, by
+/// [`crate::site::obstacles`]):
 /// `{"site":"<file name>","room":{"min":[x,y,z],"max":[x,y,z]}|null,
 /// "arrays":[{"id":..,"position":[x,y,z],"yaw_deg":..}],
 /// "obstacles":[{"name":"..","min":[x,y,z],"max":[x,y,z]}]}` (world ENU metres).
 pub fn plan_json(site: &Site, path: &Path) -> anyhow::Result<Value> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let table: toml::Table =
-        text.parse().with_context(|| format!("site file {}", path.display()))?;
-    let mut obstacles = Vec::new();
-    if let Some(list) = table.get("obstacle").and_then(|o| o.as_array()) {
-        for (i, o) in list.iter().enumerate() {
-            let corner = |key: &str| -> anyhow::Result<[f64; 3]> {
-                let v = o.get(key).and_then(|v| v.as_array()).filter(|v| v.len() == 3);
-                let v = v.ok_or_else(|| {
-                    anyhow::anyhow!(
-                        "site file {}: obstacle {} needs {key} = [x, y, z] in metres",
-                        path.display(),
-                        i + 1
-                    )
-                })?;
-                let mut out = [0.0; 3];
-                for (o, x) in out.iter_mut().zip(v) {
-                    *o = x
-                        .as_float()
-                        .or_else(|| x.as_integer().map(|i| i as f64))
-                        .filter(|x| x.is_finite())
-                        .ok_or_else(|| {
-                            anyhow::anyhow!(
-                                "site file {}: obstacle {} {key}: {x} is not a number of metres",
-                                path.display(),
-                                i + 1
-                            )
-                        })?;
-                }
-                Ok(out)
-            };
-            let name = o.get("name").and_then(|n| n.as_str()).unwrap_or("obstacle");
-            obstacles.push(json!({ "name": name, "min": corner("min")?, "max": corner("max")? }));
-        }
-    }
+    let obstacles: Vec<Value> = crate::site::obstacles(&text, path)?
+        .into_iter()
+        .map(|o| json!({ "name": o.name, "min": o.min, "max": o.max }))
+        .collect();
     let arrays: Vec<Value> = site
         .arrays
         .iter()
