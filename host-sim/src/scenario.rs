@@ -511,7 +511,18 @@ impl Scenario {
         let (table, based) = load_table(path, 0)?;
         let file: File = if based {
             table.try_into().map_err(|e: toml::de::Error| {
-                anyhow!("{} (merged with its base): {}", path.display(), e.message().trim())
+                // The merged table has no lines: a wrong type in this file's own keys is
+                // found, with its line, by reading the file alone (its missing keys are the
+                // base's to give, so a missing field there says nothing).
+                let text = std::fs::read_to_string(path).unwrap_or_default();
+                match toml::from_str::<File>(&text) {
+                    Err(own) if !own.message().starts_with("missing field") => {
+                        toml_error(path, &text, &own)
+                    }
+                    _ => {
+                        anyhow!("{} (merged with its base): {}", path.display(), e.message().trim())
+                    }
+                }
             })?
         } else {
             let text = std::fs::read_to_string(path)

@@ -155,6 +155,12 @@ fn a_refused_value_is_named_with_its_file_and_line() {
     let e = format!("{:#}", Scenario::load(&path).unwrap_err());
     assert!(e.starts_with(&format!("{}:10: unknown field `speeed`", path.display())), "{e}");
     assert!(!e.contains('\n'), "{e}");
+    // A wrong type in a file built on a `base` names its own line, as in a plain file.
+    std::fs::write(scratch("base.toml"), BASE).unwrap();
+    let path = scratch("child.toml");
+    std::fs::write(&path, "base = \"base.toml\"\n\n[air]\ntemperature_c = \"warm\"\n").unwrap();
+    let e = format!("{:#}", Scenario::load(&path).unwrap_err());
+    assert!(e.starts_with(&format!("{}:4: temperature_c: invalid type", path.display())), "{e}");
     // A `base` that names the file itself: one message, not the chain eight times.
     let path = scratch("loop.toml");
     std::fs::write(&path, "base = \"loop.toml\"\n").unwrap();
