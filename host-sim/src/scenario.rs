@@ -905,6 +905,20 @@ impl Scenario {
             if arrays.iter().any(|x: &ArrayConfig| x.id == a.id) {
                 return Err(format!("array id {} appears twice", a.id));
             }
+            // The tracker's site refuses arrays closer than an array's width; so does the world.
+            let here = Vector3::from(a.position);
+            if let Some(x) = arrays.iter().find(|x: &&ArrayConfig| {
+                (x.position_m - here).norm() < aim_tracker::site::MIN_ARRAY_SEPARATION_M
+            }) {
+                return Err(format!(
+                    "array {}: position is {:.3} m from array {}'s; arrays must be at least {} m \
+                     apart",
+                    a.id,
+                    (x.position_m - here).norm(),
+                    x.id,
+                    aim_tracker::site::MIN_ARRAY_SEPARATION_M
+                ));
+            }
             let facing_down = match a.facing.as_deref() {
                 None | Some("up") => false,
                 Some("down") => true,

@@ -142,6 +142,10 @@ fn a_refused_value_is_named_with_its_file_and_line() {
         ),
         ("[diffuse_noise]\nspl_db = 60.0\ndirections = 0", "17: diffuse_noise.directions"),
         ("[air]\nhumidity_percent = 120.0", "16: air.humidity_percent must be 0 to 100 %"),
+        (
+            "[[array]]\nid = 2\nposition = [3.0, 0.55, 0.05]",
+            "16: array 2: position is 0.050 m from array 1's",
+        ),
     ];
     for (i, (table, want)) in extra.iter().enumerate() {
         let path = scratch(&format!("item{i}.toml"));

@@ -353,6 +353,10 @@ struct RoomEntry {
     size: Option<[f64; 3]>,
 }
 
+/// Closest two arrays' centres may be, m: the width of a microphone array (two closer
+/// would overlap).
+pub const MIN_ARRAY_SEPARATION_M: f64 = 0.1;
+
 /// Checks one `[[array]]` table (every number against its range, at its own line) and
 /// turns it into a pose; `earlier` are the arrays before it (for duplicate ids).
 fn array_pose(
@@ -373,6 +377,23 @@ fn array_pose(
             a.position.span(),
             format!(
                 "array {id}: position must be finite and within {MAX_COORDINATE_M} m of the origin (got {position:?})"
+            ),
+        ));
+    }
+    // Two arrays closer than one array's width are a copy-paste slip: they would share their
+    // microphones' places and give the fusion no baseline.
+    if let Some(other) = earlier.iter().find(|p| {
+        let d2: f64 = p.position.iter().zip(&position).map(|(a, b)| (a - b).powi(2)).sum();
+        d2.sqrt() < MIN_ARRAY_SEPARATION_M
+    }) {
+        let d: f64 =
+            other.position.iter().zip(&position).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+        return Err(err(
+            a.position.span(),
+            format!(
+                "array {id}: position {position:?} is {d:.3} m from array {}'s; arrays must be at \
+                 least {MIN_ARRAY_SEPARATION_M} m apart",
+                other.id
             ),
         ));
     }
@@ -716,6 +737,11 @@ loss_db = 15.0
         let e = Site::parse(dup, Path::new("dup.toml")).unwrap_err();
         assert_eq!(e.line, Some(6), "{e}"); // the second array's id
         assert!(e.to_string().starts_with("dup.toml:6: array id 1 appears twice"), "{e}");
+
+        let stacked = "[[array]]\nid = 1\nposition = [1.0, 0.0, 0.0]\n\n[[array]]\nid = 2\nposition = [1.0, 0.05, 0.0]\n";
+        let e = Site::parse(stacked, Path::new("st.toml")).unwrap_err();
+        assert_eq!(e.line, Some(7), "{e}"); // the second array's position
+        assert!(e.message.contains("0.050 m from array 1's"), "{e}");
 
         let typo = "[[array]]\nid = 1\npositon = [0.0, 0.0, 0.0]\n";
         let e = Site::parse(typo, Path::new("typo.toml")).unwrap_err();
