@@ -670,7 +670,18 @@ impl Walk {
                     + Vector3::new(g.sample(), g.sample(), 0.4 * g.sample()) * kick;
                 target
             };
+            // Speed still gained while the jerk limit unwinds an acceleration `along` the
+            // velocity, m/s.
+            let gain = |along: f64| along.max(0.0).powi(2) / (2.0 * spec.max_jerk_mps3);
             if !braking_out {
+                // Climb limit first, so that the box's braking below has the last word (set
+                // after it, a gentle climb correction replaced the braking and the walk left
+                // its box through the floor or the ceiling).
+                let climb = v.z.abs() + gain(a.z * v.z.signum());
+                if climb > 0.8 * spec.max_climb_mps {
+                    let over = (climb - 0.8 * spec.max_climb_mps) / (0.2 * spec.max_climb_mps);
+                    desired.z = -v.z.signum() * a_max * over.min(1.0);
+                }
                 // Keep inside the box: brake before a face at half the acceleration limit,
                 // counting the jerk-limited time to build that braking.
                 for i in 0..3 {
@@ -688,7 +699,6 @@ impl Walk {
                 }
                 // Speed limits: no acceleration that adds speed beyond 90 % of the limit.
                 // Counting the speed still gained while the jerk limit unwinds the acceleration.
-                let gain = |along: f64| along.max(0.0).powi(2) / (2.0 * spec.max_jerk_mps3);
                 let speed =
                     v.norm() + gain(if v.norm() > 0.0 { a.dot(&v) / v.norm() } else { 0.0 });
                 if speed > 0.9 * spec.max_speed_mps {
@@ -696,11 +706,6 @@ impl Walk {
                     let along = desired.dot(&u);
                     let over = (speed - 0.9 * spec.max_speed_mps) / (0.1 * spec.max_speed_mps);
                     desired -= u * (along.max(0.0) + over * a_max);
-                }
-                let climb = v.z.abs() + gain(a.z * v.z.signum());
-                if climb > 0.8 * spec.max_climb_mps {
-                    let over = (climb - 0.8 * spec.max_climb_mps) / (0.2 * spec.max_climb_mps);
-                    desired.z = -v.z.signum() * a_max * over.min(1.0);
                 }
             }
             if desired.norm() > a_max {
@@ -1184,8 +1189,16 @@ mod tests {
     #[test]
     fn random_walk_stays_within_its_box_speed_acceleration_and_jerk() {
         let mut ends = Vec::new();
-        for seed in 1..=6 {
-            let spec = walk_spec(seed);
+        // A taller box from its middle too (a climb correction once overrode the box's braking
+        // and seeds 1, 2, 6 and 8 of it left through the floor or the ceiling).
+        let tall = |seed| WalkSpec {
+            start: Vector3::new(10.0, 10.0, 2.0),
+            area_min: Vector3::new(3.0, 3.0, 0.8),
+            area_max: Vector3::new(17.0, 17.0, 3.5),
+            ..walk_spec(seed)
+        };
+        for spec in (1..=6).map(walk_spec).chain((1..=10).map(tall)) {
+            let seed = spec.seed;
             let plan = FlightPlan::walk(&spec, 2.0, 2.0).unwrap();
             let (vmax, amax, step) = integrate(&plan);
             assert!(vmax <= spec.max_speed_mps + 1e-9, "seed {seed}: {vmax}");
