@@ -1195,18 +1195,37 @@ impl Scenario {
                     )
                 })?;
         }
-        if let Some(room) = &self.room {
-            let t_end = self.plan.duration_s();
-            let n = 200;
-            for i in 0..=n {
-                let p = self.plan.at(t_end * i as f64 / n as f64).position;
-                if !room.contains(&p) {
-                    return Err(format!(
-                        "path leaves the room [0, 0, 0]..{:?} (at {:?})",
-                        room.size_m,
-                        p.as_slice()
-                    ));
-                }
+        // Where the drone cannot be: outside the room, inside a solid obstacle, on top of an
+        // array. Checked every 0.1 s of the flight (at least 200 points).
+        let t_end = self.plan.duration_s();
+        let n = ((t_end / 0.1).ceil() as usize).max(200);
+        for i in 0..=n {
+            let t = t_end * i as f64 / n as f64;
+            let p = self.plan.at(t).position;
+            if let Some(room) = self.room.as_ref().filter(|r| !r.contains(&p)) {
+                return Err(format!(
+                    "path leaves the room [0, 0, 0]..{:?} (at {:?}, t = {t:.1} s)",
+                    room.size_m,
+                    p.as_slice()
+                ));
+            }
+            if let Some(o) = self.obstacles.iter().find(|o| o.contains(&p)) {
+                return Err(format!(
+                    "path passes through obstacle `{}` (at {:?}, t = {t:.1} s): a drone cannot \
+                     fly through a solid box",
+                    o.name,
+                    p.as_slice()
+                ));
+            }
+            if let Some(a) =
+                self.arrays.iter().find(|a| (a.position_m - p).norm() < MIN_DRONE_ARRAY_DISTANCE_M)
+            {
+                return Err(format!(
+                    "path comes within {MIN_DRONE_ARRAY_DISTANCE_M} m of array {}'s centre (at \
+                     {:?}, t = {t:.1} s)",
+                    a.id,
+                    p.as_slice()
+                ));
             }
         }
         Ok(())
@@ -1265,6 +1284,10 @@ impl Scenario {
         (self.duration_s * f64::from(self.sample_rate_hz)) as u64 * mics as u64 * 4
     }
 }
+
+/// Nearest a drone's centre may come to an array's centre, m: about a small drone's own
+/// radius (closer, its rotors would strike the array).
+pub const MIN_DRONE_ARRAY_DISTANCE_M: f64 = 0.25;
 
 /// The line of `text` holding the key an error message starts with (`path.loops …`,
 /// `array[1].position …`, `duration_s …`): the first whitespace-separated word, as

@@ -91,6 +91,13 @@ fn every_scenario_input_of_the_issue_is_refused_by_key() {
             edit(SQUARE, "kind = \"walk\"\nposition = [5.0, 5.0, 2.0]\narea_min = [nan, 1.0, 1.0]\narea_max = [9.0, 9.0, 3.0]"),
             "path.area_min",
         ),
+        // Where a drone cannot be: outside the room, inside a solid box, on an array.
+        (edit("side_m = 4.0", "side_m = 12.0"), "path leaves the room"),
+        (
+            format!("{BASE}[[obstacle]]\nname = \"crate\"\nmin = [2.5, 0.5, 1.5]\nmax = [3.5, 1.5, 2.5]\n"),
+            "path passes through obstacle `crate`",
+        ),
+        (edit(SQUARE, "kind = \"hover\"\nposition = [3.0, 0.5, 0.2]"), "path comes within 0.25 m of array 1's centre"),
     ];
     for (text, message) in &cases {
         let e = refused(text);
