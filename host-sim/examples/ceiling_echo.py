@@ -20,7 +20,7 @@ periodicity does not mask the echoes) shows peaks at them.
    weight 1, each wall `--wall-weight`) have the largest summed autocorrelation. `--joint`
    also searches the zenith within ±12°. `--measured HOST_SIM`: the direction is the median
    DoA of the chip's pipeline on the recording (`host-sim analyze`) instead. Prints, per room, the share of estimates within 10 %
-   of the true range for 0.51 s (three windows) and for the whole 2.7 s.
+   of the true range for 0.51 s (three windows) and for the whole 2.9 s (17 windows).
 
 This measures whether the cue exists in the simulator's rooms; it is not the tracker.
 Needs numpy and scipy.
@@ -172,7 +172,7 @@ def est(out, bias, wall_weight, joint, host_sim=None):
         rel_all = np.array([abs(w - r) / r for r, _, w in runs])
         print(f"{room:6s} zenith bias {bias:+.0f} deg: 0.51 s estimates {len(rel)}: within 10 % "
               f"{100 * np.mean(rel < 0.1):5.1f} %, median |error| {100 * np.median(rel):5.1f} % | "
-              f"2.7 s: within 10 % {100 * np.mean(rel_all < 0.1):5.1f} %, median "
+              f"2.9 s: within 10 % {100 * np.mean(rel_all < 0.1):5.1f} %, median "
               f"{100 * np.median(rel_all):5.1f} % (true ranges {min(r for r, _, _ in runs):.1f}-"
               f"{max(r for r, _, _ in runs):.1f} m)")
 
