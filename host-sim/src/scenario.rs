@@ -907,14 +907,15 @@ impl Scenario {
             }
             // The tracker's site refuses arrays closer than an array's width; so does the world.
             let here = Vector3::from(a.position);
-            if let Some(x) = arrays.iter().find(|x: &&ArrayConfig| {
-                (x.position_m - here).norm() < aim_tracker::site::MIN_ARRAY_SEPARATION_M
-            }) {
+            if let Some((x, d)) = arrays
+                .iter()
+                .map(|x: &ArrayConfig| (x, (x.position_m - here).norm()))
+                .find(|&(_, d)| d < aim_tracker::site::MIN_ARRAY_SEPARATION_M)
+            {
                 return Err(format!(
-                    "array {}: position is {:.3} m from array {}'s; arrays must be at least {} m \
+                    "array {}: position is {d:.3} m from array {}'s; arrays must be at least {} m \
                      apart",
                     a.id,
-                    (x.position_m - here).norm(),
                     x.id,
                     aim_tracker::site::MIN_ARRAY_SEPARATION_M
                 ));

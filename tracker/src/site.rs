@@ -382,12 +382,12 @@ fn array_pose(
     }
     // Two arrays closer than one array's width are a copy-paste slip: they would share their
     // microphones' places and give the fusion no baseline.
-    if let Some(other) = earlier.iter().find(|p| {
-        let d2: f64 = p.position.iter().zip(&position).map(|(a, b)| (a - b).powi(2)).sum();
-        d2.sqrt() < MIN_ARRAY_SEPARATION_M
-    }) {
-        let d: f64 =
-            other.position.iter().zip(&position).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+    let apart = |p: &ArrayPose| {
+        p.position.iter().zip(&position).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt()
+    };
+    if let Some((other, d)) =
+        earlier.iter().map(|p| (p, apart(p))).find(|&(_, d)| d < MIN_ARRAY_SEPARATION_M)
+    {
         return Err(err(
             a.position.span(),
             format!(
