@@ -17,8 +17,10 @@ use crate::motion::MotionClass;
 pub struct AimConfig {
     /// Nearest and farthest initial range hypotheses, m.
     pub range_min_m: f64,
-    /// Farthest initial range hypothesis, m (nearer still when the room's wall along the ray
-    /// is: BENCHMARKS.md, "Far drones", for what this cap costs beyond 25 m).
+    /// Farthest initial range hypothesis without a room in the site file, m; with one, the
+    /// room's boundary along the ray, however far (BENCHMARKS.md, "Far drones": measured to
+    /// a 50 m hall; the hypotheses are spread log-uniformly, so a larger room spaces the near
+    /// ones wider).
     pub range_max_m: f64,
     /// Number of initial range hypotheses.
     pub hypotheses: usize,

@@ -135,11 +135,14 @@ pub fn world_direction(array: &ArrayPose, doa: &DoaState) -> [f64; 3] {
     array.to_world(crate::observation::unit_vector(doa.azimuth_rad, doa.zenith_rad))
 }
 
-/// The farthest range along a world direction from `origin` that stays inside the room, and
-/// at most `default` (which alone applies without a room).
+/// The farthest range along a world direction from `origin` that stays inside the room,
+/// however far (`default` applies only without a room, or along a ray that leaves it
+/// nowhere).
 pub fn max_range_in_room(origin: [f64; 3], dir: [f64; 3], room: Option<Room>, default: f64) -> f64 {
     let Some(room) = room else { return default };
-    let mut best = default;
+    // The room bounds the range however large it is (a cap of `default` inside a 50 m hall
+    // kept every hypothesis short of a drone 35 m away).
+    let mut best = f64::INFINITY;
     for i in 0..3 {
         if dir[i].abs() > 1e-9 {
             let bound = if dir[i] > 0.0 { room.max[i] } else { room.min[i] };
@@ -149,5 +152,28 @@ pub fn max_range_in_room(origin: [f64; 3], dir: [f64; 3], room: Option<Room>, de
             }
         }
     }
-    best.max(0.5)
+    if best.is_finite() {
+        best.max(0.5)
+    } else {
+        default
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The range to the wall along a ray (oracle: the geometry of the box), however far;
+    /// the default only without a room.
+    #[test]
+    fn the_room_bounds_the_range_however_far() {
+        let room = Some(Room { min: [0.0; 3], max: [50.0, 50.0, 8.0] });
+        let d = std::f64::consts::FRAC_1_SQRT_2;
+        let r = max_range_in_room([5.0, 5.0, 0.05], [d, d, 0.0], room, 25.0);
+        assert!((r - 45.0 * std::f64::consts::SQRT_2).abs() < 1e-9, "{r}");
+        // Up: the ceiling, 7.95 m away.
+        let r = max_range_in_room([5.0, 5.0, 0.05], [0.0, 0.0, 1.0], room, 25.0);
+        assert!((r - 7.95).abs() < 1e-9, "{r}");
+        assert_eq!(max_range_in_room([5.0, 5.0, 0.05], [d, d, 0.0], None, 25.0), 25.0);
+    }
 }
