@@ -318,9 +318,9 @@ pub fn mean_sd(x: &[f64]) -> (f64, f64) {
 }
 
 /// Per family and filter, over seeds: (family, filter, seeds, [mean, median, p90,
-/// availability, motion class, live mean, good availability, clock sync max] as (mean, sd);
-/// the sync over the runs that have one, NaN if none).
-type Row = (String, FilterKind, usize, [(f64, f64); 8]);
+/// availability, motion class, live mean, good availability, clock sync max, 95 % coverage]
+/// as (mean, sd); the sync over the runs that have one, NaN if none).
+type Row = (String, FilterKind, usize, [(f64, f64); 9]);
 
 fn aggregate(suite: &Suite, results: &[RunResult]) -> Vec<Row> {
     let mut rows = Vec::new();
@@ -349,6 +349,7 @@ fn aggregate(suite: &Suite, results: &[RunResult]) -> Vec<Row> {
                     stat(|s| s.live_mean_m),
                     stat(|s| s.good_availability),
                     mean_sd(&syncs),
+                    stat(|s| s.coverage_95),
                 ],
             ));
         }
@@ -359,13 +360,13 @@ fn aggregate(suite: &Suite, results: &[RunResult]) -> Vec<Row> {
 /// The CSV of one row per run.
 pub fn runs_csv(results: &[RunResult]) -> String {
     let mut s = String::from(
-        "family,seed,filter,mean_m,median_m,p90_m,availability,fixes,due,motion_accuracy,los_accuracy,live_mean_m,good_availability,sync_max_us\n",
+        "family,seed,filter,mean_m,median_m,p90_m,availability,fixes,due,motion_accuracy,los_accuracy,live_mean_m,good_availability,sync_max_us,coverage_95\n",
     );
     for r in results {
         let m = &r.summary;
         let _ = writeln!(
             s,
-            "{},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{:.4},{},{:.4},{:.4},{}",
+            "{},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{:.4},{},{:.4},{:.4},{},{:.4}",
             r.family,
             r.seed,
             filter_name(r.filter),
@@ -380,6 +381,7 @@ pub fn runs_csv(results: &[RunResult]) -> String {
             m.live_mean_m,
             m.good_availability,
             if r.sync_max_us.is_finite() { format!("{:.2}", r.sync_max_us) } else { String::new() },
+            m.coverage_95,
         );
     }
     s
@@ -389,16 +391,18 @@ pub fn runs_csv(results: &[RunResult]) -> String {
 fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (String, String) {
     let rows = aggregate(suite, results);
     let mut csv = String::from(
-        "family,filter,seeds,mean_m,mean_m_sd,median_m,median_m_sd,p90_m,p90_m_sd,availability,availability_sd,motion_accuracy,motion_accuracy_sd,live_mean_m,live_mean_m_sd,good_availability,good_availability_sd,sync_max_us,sync_max_us_sd\n",
+        "family,filter,seeds,mean_m,mean_m_sd,median_m,median_m_sd,p90_m,p90_m_sd,availability,availability_sd,motion_accuracy,motion_accuracy_sd,live_mean_m,live_mean_m_sd,good_availability,good_availability_sd,sync_max_us,sync_max_us_sd,coverage_95,coverage_95_sd\n",
     );
     let mut md = format!(
         "{} seeds; each cell: mean ± sd over seeds of the per-run figure. Errors are at the \
          instant a fix describes; *live* is against where the drone is when the fix becomes \
          available; *fixes ≤ {good} m* is the share of due output instants with a fix that close; \
          *clock sync* is the largest error of the beacon clock model over the arrays 10 s after \
-         the first beacon (scenarios with a beacon).\n\n\
-         | family | filter | seeds | mean error | median error | p90 error | live mean error | availability | fixes ≤ {good} m | motion class | clock sync |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
+         the first beacon (scenarios with a beacon); *in 95 % ellipsoid* is the share of fixes \
+         whose error lies inside their own reported 95 % ellipsoid (95 % if the covariance is \
+         honest).\n\n\
+         | family | filter | seeds | mean error | median error | p90 error | live mean error | availability | fixes ≤ {good} m | motion class | clock sync | in 95 % ellipsoid |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
         seeds_label,
         good = host_sim::eval::metrics::GOOD_FIX_M,
     );
@@ -410,7 +414,7 @@ fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (S
         csv.push('\n');
         let _ = writeln!(
             md,
-            "| {family} | {} | {n} | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.1} ± {:.1} % | {:.1} ± {:.1} % | {:.1} ± {:.1} % | {} |",
+            "| {family} | {} | {n} | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.2} ± {:.2} m | {:.1} ± {:.1} % | {:.1} ± {:.1} % | {:.1} ± {:.1} % | {} | {:.1} ± {:.1} % |",
             filter_name(*filter),
             st[0].0,
             st[0].1,
@@ -431,6 +435,8 @@ fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (S
             } else {
                 "—".into()
             },
+            100.0 * st[8].0,
+            100.0 * st[8].1,
         );
     }
     (csv, md)

@@ -5,9 +5,11 @@
 //! DIR/site.toml` does (the same [`aim_tracker::session::Session`], the frames in link order,
 //! nothing but the bytes and the site file), and compare with the truth.
 //!
-//! Prints the error summary (mean, median, p90, availability, motion-class accuracy, latency)
+//! Prints the error summary (mean, median, p90, availability, motion-class accuracy, the share
+//! of fixes inside their own 95 % ellipsoid, latency)
 //! and the intake's statistics line, and writes
-//! `DIR/track.csv` (`t,x,y,z,vx,vy,vz,sigma_x,sigma_y,sigma_z,motion,los,truth_x,truth_y,truth_z,error`),
+//! `DIR/track.csv` (`t,x,y,z,vx,vy,vz,sigma_x,sigma_y,sigma_z,motion,los,truth_x,truth_y,truth_z,error,cov_xy,cov_xz,cov_yz`;
+//! the `cov_*` are the position covariance's off-diagonal terms, m²),
 //! `DIR/fixes.jsonl` (what `aim replay` prints for the same frames), `DIR/track.png` (track
 //! against truth), `DIR/site.toml`, `DIR/frames-<id>.aimraw` and `DIR/truth.csv`. With
 //! `--filter both` the tracks go to `DIR/paper/` and `DIR/aim/` from one simulation.
@@ -140,7 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         let s = &r.summary;
         println!(
-            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, live mean {:.2} m, availability {:.1} % ({}/{}, {:.1} % within {} m), motion class {:.1} %{}, latency mean {:.2} s, max {:.2} s",
+            "{} {}: mean {:.2} m, median {:.2} m, p90 {:.2} m, live mean {:.2} m, availability {:.1} % ({}/{}, {:.1} % within {} m), motion class {:.1} %{}, in its 95 % ellipsoid {:.1} %, latency mean {:.2} s, max {:.2} s",
             scenario.name,
             filter_name(r.kind),
             s.mean_m,
@@ -154,6 +156,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             host_sim::eval::metrics::GOOD_FIX_M,
             100.0 * s.motion_accuracy,
             s.los_accuracy.map_or(String::new(), |a| format!(", LoS flag {:.1} %", 100.0 * a)),
+            100.0 * s.coverage_95,
             r.latency.mean_latency_s,
             r.latency.max_latency_s,
         );
@@ -370,7 +373,7 @@ pub(crate) fn filter_name(kind: FilterKind) -> &'static str {
 /// Writes the track with the truth beside it.
 fn write_track(path: &Path, fixes: &[Fix], truth: &host_sim::truth::Truth) -> anyhow::Result<()> {
     let mut s = String::from(
-        "t,x,y,z,vx,vy,vz,sigma_x,sigma_y,sigma_z,motion,los,truth_x,truth_y,truth_z,error\n",
+        "t,x,y,z,vx,vy,vz,sigma_x,sigma_y,sigma_z,motion,los,truth_x,truth_y,truth_z,error,cov_xy,cov_xz,cov_yz\n",
     );
     for f in fixes {
         let (tp, err) = match metrics::truth_at(truth, f.t) {
@@ -385,7 +388,7 @@ fn write_track(path: &Path, fixes: &[Fix], truth: &host_sim::truth::Truth) -> an
         };
         let _ = writeln!(
             s,
-            "{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{}",
+            "{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{:.6},{:.6},{:.6}",
             f.t,
             f.position[0],
             f.position[1],
@@ -399,7 +402,10 @@ fn write_track(path: &Path, fixes: &[Fix], truth: &host_sim::truth::Truth) -> an
             f.motion.as_str(),
             f.los,
             tp,
-            err
+            err,
+            f.covariance[0][1],
+            f.covariance[0][2],
+            f.covariance[1][2],
         );
     }
     std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))

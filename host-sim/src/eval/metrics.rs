@@ -12,6 +12,9 @@ pub const MOVING_MPS: f64 = 0.2;
 pub const YAWING_RAD_S: f64 = 0.2;
 /// Time the tracker may take after its first frame before fixes are due, s.
 pub const WARM_UP_S: f64 = 0.25;
+/// χ² of three degrees of freedom at 95 %: a fix's error lies inside its own 95 % ellipsoid
+/// when `eᵀ C⁻¹ e` is at most this (C its position covariance).
+pub const CHI2_3DOF_95: f64 = 7.814_727_903_251_178;
 /// Error bound of a *good* fix, m: [`Summary::good_availability`] counts the due output
 /// instants whose fix is within it (the NLoS target is 2.0 m).
 pub const GOOD_FIX_M: f64 = 2.0;
@@ -63,6 +66,20 @@ pub struct Summary {
     pub motion_accuracy: f64,
     /// Fraction of fixes whose LoS flag equals the truth's (None without LoS truth).
     pub los_accuracy: Option<f64>,
+    /// Fraction of fixes whose error lies inside the fix's own 95 % ellipsoid
+    /// (`eᵀ C⁻¹ e ≤` [`CHI2_3DOF_95`]): 0.95 when the reported covariance is honest, less
+    /// when it is overconfident. A singular covariance counts as outside.
+    pub coverage_95: f64,
+}
+
+/// The normalised estimation error squared `eᵀ C⁻¹ e` (dimensionless), or `None` when `c`
+/// is singular or not finite.
+pub fn nees(e: [f64; 3], c: &[[f64; 3]; 3]) -> Option<f64> {
+    let m = nalgebra::Matrix3::from_fn(|i, j| c[i][j]);
+    let v = nalgebra::Vector3::from(e);
+    let x = m.cholesky()?.solve(&v);
+    let q = v.dot(&x);
+    q.is_finite().then_some(q)
 }
 
 /// The `p` quantile of sorted values (linear interpolation).
@@ -92,6 +109,7 @@ pub fn evaluate(
     let mut los_right = 0;
     let mut los_known = 0;
     let mut counted = 0;
+    let mut covered = 0;
     for f in fixes.iter().filter(|f| f.t >= start - 1e-9 && f.t <= last_input_t + 1e-9) {
         let t = truth.true_time(array_index, f.t);
         let Some((p, v, w)) = truth_at(truth, t) else { continue };
@@ -103,6 +121,10 @@ pub fn evaluate(
             .sqrt()
         };
         errors.push(distance(p));
+        let e = [f.position[0] - p[0], f.position[1] - p[1], f.position[2] - p[2]];
+        if nees(e, &f.covariance).is_some_and(|q| q <= CHI2_3DOF_95) {
+            covered += 1;
+        }
         // Past the truth's end the drone has landed where the truth ends.
         let live_t = truth.true_time(array_index, f.available);
         let live = truth_at(truth, live_t)
@@ -133,6 +155,7 @@ pub fn evaluate(
         due,
         motion_accuracy: class_right as f64 / n,
         los_accuracy: (los_known > 0).then(|| los_right as f64 / los_known as f64),
+        coverage_95: covered as f64 / n,
     }
 }
 
@@ -167,7 +190,8 @@ mod tests {
         };
         // Fixes every 0.1 s from 0.3 s to 1.9 s, each 0.5 m off in y, one missing (1.0 s),
         // available 0.3 s after the instant they describe (the drone is 0.3 m further on by
-        // then), the last three 3 m off in y.
+        // then), the last three 3 m off in y with σ_y 2 m (inside their 95 % ellipsoid: 9 / 4
+        // ≤ 7.81), the others 0.5 m off with σ 0.1 m (outside: 25).
         let fixes: Vec<Fix> = (3..=19)
             .filter(|&k| k != 10)
             .map(|k| {
@@ -177,12 +201,17 @@ mod tests {
                     available: t + 0.3,
                     position: [t, if k >= 17 { 3.0 } else { 0.5 }, 2.0],
                     velocity: [1.0, 0.0, 0.0],
-                    sigma: [0.1; 3],
-                    covariance: [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.01]],
+                    sigma: [0.1, if k >= 17 { 2.0 } else { 0.1 }, 0.1],
+                    covariance: [
+                        [0.01, 0.0, 0.0],
+                        [0.0, if k >= 17 { 4.0 } else { 0.01 }, 0.0],
+                        [0.0, 0.0, 0.01],
+                    ],
                     resets: 0,
                     motion: if k < 6 { MotionClass::Hover } else { MotionClass::Horizontal },
                     los: true,
                     drone: None,
+                    heard: true,
                 }
             })
             .collect();
@@ -205,5 +234,20 @@ mod tests {
         assert!((s.live_mean_m - expected).abs() < 1e-9, "{} vs {expected}", s.live_mean_m);
         assert!((s.motion_accuracy - 13.0 / 16.0).abs() < 1e-12, "{}", s.motion_accuracy);
         assert_eq!(s.los_accuracy, Some(1.0));
+        assert!((s.coverage_95 - 3.0 / 16.0).abs() < 1e-12, "{}", s.coverage_95);
+    }
+
+    /// `eᵀ C⁻¹ e` against a hand inversion: C = [[2, 1, 0], [1, 2, 0], [0, 0, 4]] has
+    /// C⁻¹ = [[2/3, −1/3, 0], [−1/3, 2/3, 0], [0, 0, 1/4]]; e = (1, 0, 2) gives 2/3 + 1 = 5/3.
+    /// A singular covariance has none.
+    #[test]
+    fn nees_against_a_hand_inversion() {
+        let c = [[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 4.0]];
+        let q = nees([1.0, 0.0, 2.0], &c).unwrap();
+        assert!((q - 5.0 / 3.0).abs() < 1e-12, "{q}");
+        assert_eq!(
+            nees([1.0, 0.0, 0.0], &[[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
+            None
+        );
     }
 }

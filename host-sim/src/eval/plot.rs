@@ -342,6 +342,7 @@ mod tests {
             motion: aim_tracker::motion::MotionClass::Hover,
             los,
             drone: None,
+            heard: true,
             available: t,
         };
         let fixes =
@@ -395,6 +396,7 @@ mod tests {
                     motion: aim_tracker::motion::MotionClass::Horizontal,
                     los: !(40..60).contains(&k),
                     drone: None,
+                    heard: true,
                 }
             })
             .collect();

@@ -1,7 +1,7 @@
 //! `aim replay FRAMES [FRAMES...] --site SITE.toml`: track from a recording of frames (or `-`
 //! for stdin; several recordings, one per board, are read as one link by
 //! [`aim_tracker::link::Merged`]) and print one JSON fix per output period:
-//! `{"t":..,"available":..,"x":..,"y":..,"z":..,"motion":"hover|yaw|horizontal|vertical","los":true|false,"drone":..}`
+//! `{"t":..,"available":..,"x":..,"y":..,"z":..,"sigma":[..],"motion":"hover|yaw|horizontal|vertical","los":true|false,"heard":true|false,"drone":..}`
 //! (`t`: the instant it describes; `available`: when the array had sent what it used, s;
 //! `drone`: the classifier's verdict, whether a drone is there from the array's last three
 //! disjoint windows of 6 `Mfcc` frames (`aim_tracker::id::chip::DECISION_WINDOWS`), which one
@@ -82,6 +82,11 @@ pub struct MavlinkArgs {
     #[arg(long, default_value_t = aim_tracker::output::mavlink::DEFAULT_SYSTEM_ID,
           value_parser = clap::value_parser!(u8).range(1..))]
     pub mavlink_system_id: u8,
+    /// Send fixes no rotor signature supports too (`"heard":false`: no `Peaks` frame with one
+    /// in the last 5 s); by default they are withheld and counted, as their bearings may be
+    /// of a machine or a fan.
+    #[arg(long)]
+    pub mavlink_send_unheard: bool,
 }
 
 impl MavlinkArgs {
@@ -89,7 +94,10 @@ impl MavlinkArgs {
     pub fn open(&self, site: &std::path::Path) -> anyhow::Result<Option<MavlinkOut>> {
         let Some(address) = &self.mavlink else { return Ok(None) };
         let origin = Origin::load(site).context("--mavlink")?;
-        Ok(Some(MavlinkOut::open(address, origin, self.mavlink_system_id)?))
+        Ok(Some(
+            MavlinkOut::open(address, origin, self.mavlink_system_id)?
+                .send_unheard(self.mavlink_send_unheard),
+        ))
     }
 }
 
@@ -159,7 +167,7 @@ pub struct Args {
 
 /// Feeds every frame of `source` through the session, printing fixes as JSON lines as soon as
 /// they are available (`live`: flushed one by one) and sending them to `mavlink` if given,
-/// then the statistics line on stderr (and `{"kind":"mavlink","sent":..,"failed":..}`). Every
+/// then the statistics line on stderr (and `{"kind":"mavlink","sent":..,"withheld":..,"failed":..}`). Every
 /// fix also goes to `also` after it is printed (the live map, the bus).
 pub fn track_frames<R: std::io::Read>(
     name: &str,
@@ -195,8 +203,10 @@ pub fn track_frames<R: std::io::Read>(
         );
     }
     if let Some(m) = mavlink {
-        let (sent, failed) = m.counts();
-        eprintln!("{{\"kind\":\"mavlink\",\"sent\":{sent},\"failed\":{failed}}}");
+        let (sent, withheld, failed) = m.counts();
+        eprintln!(
+            "{{\"kind\":\"mavlink\",\"sent\":{sent},\"withheld\":{withheld},\"failed\":{failed}}}"
+        );
     }
     result.with_context(|| format!("{name} (site {})", site.display()))
 }

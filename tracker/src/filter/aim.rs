@@ -5,7 +5,9 @@
 //! lines ([`crate::doppler`]) fix the scale. The first
 //! bearing therefore spawns hypotheses spread geometrically along the ray; each is an EKF with
 //! bearing, speed and motion-class updates, weighted by its measurement likelihoods. The
-//! mixture's covariance (spread of hypotheses included) is reported honestly.
+//! estimate's covariance is the mixture's (spread of hypotheses included). It is
+//! overconfident: the hypotheses settle on one range long before the range is known, so the
+//! tracker adds an error model to what a fix reports ([`crate::tracker::SingleArrayError`]).
 
 use super::ekf::{Ekf, StateCov, LN_REST, STATE, WAKE_GAIN, ZENITH_BIAS};
 use super::{max_range_in_room, world_direction, Estimate, Filter, Step};

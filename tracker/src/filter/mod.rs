@@ -27,6 +27,14 @@ pub enum FilterKind {
     Triangulate,
 }
 
+impl FilterKind {
+    /// Whether the filter uses other arrays' bearings and range differences ([`Step::others`],
+    /// [`Step::range_differences`]): the `paper` baseline tracks from one array alone.
+    pub fn uses_other_arrays(self) -> bool {
+        !matches!(self, FilterKind::Paper)
+    }
+}
+
 impl std::str::FromStr for FilterKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {

@@ -13,6 +13,10 @@
 //! - `reset_counter`: the tracker's restarts ([`Fix::resets`], modulo 256): it changes when
 //!   the track starts afresh after a silence of the array or a reboot's new epoch.
 //!
+//! A fix no rotor signature supports ([`Fix::heard`] false: the bearings may be of a machine
+//! or a fan) is not sent, only counted as withheld and said once on stderr
+//! ([`MavlinkOut::send_unheard`] sends it anyway).
+//!
 //! The sender is system [`DEFAULT_SYSTEM_ID`] (the vehicle's, as a companion computer is),
 //! component `MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY` (197). A send that fails (no listener on
 //! a UDP port yet, a serial write error) is counted and said once on stderr; tracking goes on.
@@ -98,6 +102,8 @@ pub struct MavlinkOut {
     origin: Origin,
     failures: Arc<AtomicU64>,
     sent: AtomicU64,
+    withheld: AtomicU64,
+    send_unheard: bool,
     stop: Arc<AtomicBool>,
     heartbeat: Option<std::thread::JoinHandle<()>>,
 }
@@ -163,13 +169,32 @@ impl MavlinkOut {
             origin,
             failures,
             sent: AtomicU64::new(0),
+            withheld: AtomicU64::new(0),
+            send_unheard: false,
             stop,
             heartbeat: Some(heartbeat),
         })
     }
 
-    /// Sends `fix` (a fix that is not finite is skipped).
+    /// Sends the fixes no rotor signature supports too (for a drone whose rotors the chip's
+    /// detector does not recognise).
+    pub fn send_unheard(mut self, yes: bool) -> Self {
+        self.send_unheard = yes;
+        self
+    }
+
+    /// Sends `fix` (a fix that is not finite is skipped; one no rotor signature supports is
+    /// withheld and counted, unless [`Self::send_unheard`]).
     pub fn send(&self, fix: &Fix) {
+        if !fix.heard && !self.send_unheard {
+            if self.withheld.fetch_add(1, Ordering::Relaxed) == 0 {
+                crate::exit::note(
+                    "note: MAVLink: fixes without a rotor signature in the last 5 s are withheld \
+                     (counted; --mavlink-send-unheard sends them)",
+                );
+            }
+            return;
+        }
         let Some(data) = vision_position_estimate(fix, &self.origin) else { return };
         match self.link.send(&self.header, &MavMessage::VISION_POSITION_ESTIMATE(data)) {
             Ok(_) => {
@@ -179,9 +204,14 @@ impl MavlinkOut {
         }
     }
 
-    /// Messages sent with [`Self::send`], and sends (fixes and heartbeats) that failed.
-    pub fn counts(&self) -> (u64, u64) {
-        (self.sent.load(Ordering::Relaxed), self.failures.load(Ordering::Relaxed))
+    /// Messages sent with [`Self::send`], fixes withheld (not [`Fix::heard`]), and sends
+    /// (fixes and heartbeats) that failed.
+    pub fn counts(&self) -> (u64, u64, u64) {
+        (
+            self.sent.load(Ordering::Relaxed),
+            self.withheld.load(Ordering::Relaxed),
+            self.failures.load(Ordering::Relaxed),
+        )
     }
 }
 
@@ -221,6 +251,7 @@ mod tests {
             motion: MotionClass::Hover,
             los: true,
             drone: None,
+            heard: true,
         }
     }
 

@@ -98,8 +98,8 @@ impl LiveMap {
     }
 
     /// A fix: `{"n":..,"t":..,"x":..,"y":..,"z":..,"vx":..,"vy":..,"vz":..,"sx":..,"sy":..,
-    /// "sz":..,"motion":"..","los":..}` (metres, m/s, s; `n` counts the fixes from 1; `s*`: the
-    /// standard deviation of each coordinate).
+    /// "sz":..,"motion":"..","los":..,"heard":..}` (metres, m/s, s; `n` counts the fixes from 1;
+    /// `s*`: the standard deviation of each coordinate; `heard`: [`Fix::heard`]).
     pub fn fix(&self, fix: &Fix) {
         let mut hub = self.hub();
         hub.fixes += 1;
@@ -112,6 +112,7 @@ impl LiveMap {
             "sx": r(fix.sigma[0]), "sy": r(fix.sigma[1]), "sz": r(fix.sigma[2]),
             "motion": fix.motion.as_str(),
             "los": fix.los,
+            "heard": fix.heard,
         });
         hub.publish("fix", &data);
     }
@@ -226,6 +227,7 @@ mod tests {
             motion: crate::motion::MotionClass::Hover,
             los: true,
             drone: None,
+            heard: true,
             resets: 0,
         }
     }
