@@ -116,8 +116,9 @@ pub struct TrackerConfig {
     pub handover_heard_s: f64,
     /// Least time between two take-overs for a nearer array, s.
     pub handover_hold_s: f64,
-    /// The reported covariance of a fix from one array alone (no other array's bearing or
-    /// range difference went into the filter in the last `cross_array_s`) adds an error
+    /// The reported covariance of a fix from one array alone (no estimate of the last
+    /// `cross_array_s` took another array's bearing or a range difference:
+    /// [`crate::filter::Estimate::crossed`]) adds an error
     /// model to the filter's own ([`SingleArrayError`]). One array observes range only
     /// through the drone's dynamics, and the filter's hypotheses settle on one range long
     /// before it is known: without the model 2–48 % of fixes lay inside their own 95 %
@@ -125,10 +126,11 @@ pub struct TrackerConfig {
     /// constants were fitted on the tuning seeds; the filter's state is not changed, only
     /// what a fix reports.
     pub single_array_error: SingleArrayError,
-    /// How long other arrays' measurements keep a fix "crossed" (no single-array model), s.
+    /// How long an estimate that took other arrays' measurements keeps the fixes after it
+    /// "crossed" (no single-array model), s.
     pub cross_array_s: f64,
-    /// The reported covariance of a crossed fix (other arrays' bearings or range differences
-    /// in the filter within `cross_array_s`) adds this σ in every direction, m. Without it
+    /// The reported covariance of a crossed fix (an estimate within `cross_array_s` took
+    /// other arrays' bearings or range differences) adds this σ in every direction, m. Without it
     /// the `aim` filter's fused fixes lay inside their own 95 % ellipsoid in 12–63 % of cases
     /// (warehouse and 20 m ZigZag families, tuning seeds 101–110); 0.3 m brings the warehouse
     /// families to 98–100 %, ZigZag at 20 m to 80–100 % (BENCHMARKS.md "Honest covariance").
@@ -1232,10 +1234,8 @@ impl Tracker {
             doppler,
             speed_of_sound_mps: DEFAULT_SPEED_OF_SOUND_MPS,
         };
-        let crossed = self.kind.uses_other_arrays()
-            && (!step.others.is_empty() || !step.range_differences.is_empty());
         let est = self.filter.step(&step)?;
-        if crossed {
+        if est.crossed {
             self.last_crossed_t = t;
         }
         self.last_position = Some(est.position);

@@ -196,6 +196,9 @@ pub struct AimFilter {
     since_class_change_s: f64,
     /// Time of the last step that carried range differences, s.
     last_ranged_t: Option<f64>,
+    /// Whether hypotheses holding at least half the weight took an other array's bearing or
+    /// a range difference at this step ([`Estimate::crossed`]).
+    crossed: bool,
 }
 
 /// How long after the last range difference the filter counts as ranged, s.
@@ -365,8 +368,15 @@ impl AimFilter {
     }
 
     /// Updates one hypothesis with the other arrays' bearings and the range differences of
-    /// `step`, the bearings' noise multiplied by `bearing_scale`; returns their log-likelihood.
-    fn update_other_arrays(c: &AimConfig, f: &mut Ekf, step: &Step, bearing_scale: f64) -> f64 {
+    /// `step`, the bearings' noise multiplied by `bearing_scale`; returns their log-likelihood
+    /// and whether any of them updated the state (one beyond the gate updates nothing).
+    fn update_other_arrays(
+        c: &AimConfig,
+        f: &mut Ekf,
+        step: &Step,
+        bearing_scale: f64,
+    ) -> (f64, bool) {
+        let before = f.x;
         let mut ll = 0.0;
         for (array, b) in &step.others {
             let saz = bearing_scale * c.other_azimuth_sigma / b.zenith_rad.sin().max(0.05);
@@ -399,7 +409,26 @@ impl AimFilter {
                 )
                 .unwrap_or(0.0);
         }
-        ll
+        (ll, f.x != before)
+    }
+
+    /// The share of the mixture's weight (0–1) held by the hypotheses flagged in `flags`
+    /// (in the order of `components`).
+    fn weight_share(&self, flags: &[bool]) -> f64 {
+        let best = self.components.iter().map(|(lw, _)| *lw).fold(f64::NEG_INFINITY, f64::max);
+        let (mut flagged, mut total) = (0.0, 0.0);
+        for ((lw, _), &flag) in self.components.iter().zip(flags) {
+            let w = (lw - best).exp();
+            total += w;
+            if flag {
+                flagged += w;
+            }
+        }
+        if total > 0.0 {
+            flagged / total
+        } else {
+            0.0
+        }
     }
 
     /// Drops hypotheses far less likely than the best (and beyond the most kept), then
@@ -442,6 +471,7 @@ impl AimFilter {
             position: [mean[0], mean[1], mean[2]],
             velocity: [mean[3], mean[4], mean[5]],
             position_covariance: symmetrized(&cov),
+            crossed: self.crossed,
         }
     }
 }
@@ -455,9 +485,13 @@ impl Filter for AimFilter {
             // The hypotheses lie along the tracked array's ray; the other arrays' bearings and
             // the range differences of this step already say where along it.
             let c = self.config.clone();
+            let mut used = Vec::with_capacity(self.components.len());
             for (lw, f) in self.components.iter_mut() {
-                *lw += Self::update_other_arrays(&c, f, step, 1.0);
+                let (l, u) = Self::update_other_arrays(&c, f, step, 1.0);
+                *lw += l;
+                used.push(u);
             }
+            self.crossed = self.weight_share(&used) >= 0.5;
             self.normalise_and_prune();
             return Some(self.estimate());
         }
@@ -517,6 +551,7 @@ impl Filter for AimFilter {
         let s = step.speed;
         let moving = matches!(step.motion, MotionClass::Horizontal | MotionClass::Vertical);
         let q_rest = if manoeuvre { c.q_rest_manoeuvre } else { c.q_rest };
+        let mut used = Vec::with_capacity(self.components.len());
         for (lw, f) in self.components.iter_mut() {
             f.predict(step.dt, q, c.zenith_bias_tau_s, c.zenith_bias_sigma);
             f.diffuse_rest(q_rest * step.dt);
@@ -546,7 +581,9 @@ impl Filter for AimFilter {
                     ll += l;
                 }
             }
-            ll += Self::update_other_arrays(&c, f, step, scale);
+            let (l, u) = Self::update_other_arrays(&c, f, step, scale);
+            ll += l;
+            used.push(u);
             if let Some((az, saz)) = nlos_azimuth {
                 let l = f.update_azimuth(step.array, az, saz).unwrap_or(0.0);
                 if moving {
@@ -594,6 +631,7 @@ impl Filter for AimFilter {
             }
             *lw += ll;
         }
+        self.crossed = self.weight_share(&used) >= 0.5;
         self.normalise_and_prune();
         Some(self.estimate())
     }

@@ -27,14 +27,6 @@ pub enum FilterKind {
     Triangulate,
 }
 
-impl FilterKind {
-    /// Whether the filter uses other arrays' bearings and range differences ([`Step::others`],
-    /// [`Step::range_differences`]): the `paper` baseline tracks from one array alone.
-    pub fn uses_other_arrays(self) -> bool {
-        !matches!(self, FilterKind::Paper)
-    }
-}
-
 impl std::str::FromStr for FilterKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
@@ -121,6 +113,9 @@ pub struct Estimate {
     pub velocity: [f64; 3],
     /// Covariance of the position (3×3, m²).
     pub position_covariance: nalgebra::Matrix3<f64>,
+    /// Other arrays' measurements (bearings, range differences) went into this estimate at
+    /// this step: its range is observed by crossing, not inferred by one array.
+    pub crossed: bool,
 }
 
 /// A tracking filter.

@@ -247,7 +247,12 @@ impl Filter for PaperFilter {
             let z = coordinate(w?, &mut h);
             let p = Matrix3::identity() * c.sigma_initial_m.powi(2);
             self.state = Some((z, p));
-            return Some(Estimate { position: z, velocity: [0.0; 3], position_covariance: p });
+            return Some(Estimate {
+                position: z,
+                velocity: [0.0; 3],
+                position_covariance: p,
+                crossed: false,
+            });
         };
         // Predict with the acoustic displacement.
         let u = match step.motion {
@@ -296,7 +301,7 @@ impl Filter for PaperFilter {
             [0.0; 3]
         };
         self.state = Some((x_new, p_new));
-        Some(Estimate { position: x_new, velocity, position_covariance: p_new })
+        Some(Estimate { position: x_new, velocity, position_covariance: p_new, crossed: false })
     }
 }
 

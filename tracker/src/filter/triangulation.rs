@@ -40,7 +40,11 @@ impl Filter for TriangulationFilter {
         let rays: Vec<Ray> = self.latest.values().map(|(_, ray)| *ray).collect();
         let Ok(point) = triangulate(&rays, MIN_ANGLE_RAD) else {
             // Held where it was, not moving.
-            return self.last.as_ref().map(|(_, e)| Estimate { velocity: [0.0; 3], ..e.clone() });
+            return self.last.as_ref().map(|(_, e)| Estimate {
+                velocity: [0.0; 3],
+                crossed: false,
+                ..e.clone()
+            });
         };
         let mut position = point.position;
         if let Some(room) = step.room {
@@ -57,8 +61,13 @@ impl Filter for TriangulationFilter {
         };
         // The rays' scatter about the point as its spread (at least 0.1 m).
         let var = point.rms_distance_m.max(0.1).powi(2);
-        let estimate =
-            Estimate { position, velocity, position_covariance: Matrix3::identity() * var };
+        // Rays of at least two arrays (the tracked one's may be stale or out of LoS).
+        let estimate = Estimate {
+            position,
+            velocity,
+            position_covariance: Matrix3::identity() * var,
+            crossed: rays.len() >= 2,
+        };
         self.last = Some((step.t, estimate.clone()));
         Some(estimate)
     }
