@@ -13,6 +13,8 @@
 //! that share an array have correlated errors; pass independent pairs (each array against one
 //! reference array) or accept that they are treated as independent.
 
+use crate::observation::distance;
+
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 /// One range difference: |S − p| − |S − q| = `metres`.
@@ -31,7 +33,7 @@ pub struct RangeDifference {
 impl RangeDifference {
     /// |s − p| − |s − q| at `s`, m.
     pub fn predicted(&self, s: [f64; 3]) -> f64 {
-        dist(s, self.p) - dist(s, self.q)
+        distance(s, self.p) - distance(s, self.q)
     }
 
     /// Gradient of [`RangeDifference::predicted`] at `s` (difference of the two unit vectors).
@@ -107,10 +109,6 @@ pub enum MultilatError {
     /// Not converged within the iteration cap.
     #[error("Gauss-Newton did not converge in {0} iterations")]
     NotConverged(usize),
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// Σ w gᵀg of the range differences at `s` (the data's information), and the cost and gradient
@@ -217,7 +215,7 @@ pub fn multilaterate(
             None if step.norm() < 1e3 * config.tolerance_m => {}
             None => return Err(MultilatError::Diverged),
         }
-        if dist(s, initial) > config.max_distance_m {
+        if distance(s, initial) > config.max_distance_m {
             return Err(MultilatError::Diverged);
         }
         if moved < config.tolerance_m || accepted.is_none() {
@@ -264,7 +262,7 @@ impl Hyperboloid {
     /// coincide, the difference is zero (the surface is the bisecting plane) or not shorter
     /// than the baseline (no surface).
     pub fn new(p: [f64; 3], q: [f64; 3], range_difference_m: f64) -> Option<Self> {
-        let d = dist(p, q);
+        let d = distance(p, q);
         let a = range_difference_m.abs() / 2.0;
         if !(d > 0.0 && a > 0.0 && a < d / 2.0) {
             return None;
@@ -314,7 +312,7 @@ mod tests {
         (1..ARRAYS.len())
             .map(|k| {
                 let (p, q) = (ARRAYS[k], ARRAYS[0]);
-                let metres = dist(source, p) - dist(source, q) + sigma * rng.normal();
+                let metres = distance(source, p) - distance(source, q) + sigma * rng.normal();
                 RangeDifference { p, q, metres, sigma_m: sigma }
             })
             .collect()
@@ -328,7 +326,7 @@ mod tests {
             .map(|d| RangeDifference { sigma_m: 0.01, ..d })
             .collect::<Vec<_>>();
         let fix = multilaterate(&d, [5.0, 5.0, 1.0], None, &MultilatConfig::default()).unwrap();
-        assert!(dist(fix.position, SOURCE) < 1e-6, "{fix:?}");
+        assert!(distance(fix.position, SOURCE) < 1e-6, "{fix:?}");
         assert_eq!(fix.data_rank, 3);
         // Eq. 8: the solution lies on every pair's hyperboloid, on the sheet of its sign
         // (also for the pairs not used in the solve).
@@ -337,7 +335,7 @@ mod tests {
                 if p == q {
                     continue;
                 }
-                let rd = dist(SOURCE, ap) - dist(SOURCE, aq);
+                let rd = distance(SOURCE, ap) - distance(SOURCE, aq);
                 let h = Hyperboloid::new(ap, aq, rd).unwrap();
                 assert!(h.value(fix.position).abs() < 1e-5, "{p}{q}: {}", h.value(fix.position));
                 assert!(h.on_sheet(fix.position), "{p}{q}");
@@ -349,15 +347,15 @@ mod tests {
                     h.centre[2] - 2.0 * x * h.axis[2] + (fix.position[2] - h.centre[2]),
                 ];
                 assert!(h.value(mirror).abs() < 1e-5 && !h.on_sheet(mirror), "{rho}");
-                let flipped = dist(mirror, ap) - dist(mirror, aq);
+                let flipped = distance(mirror, ap) - distance(mirror, aq);
                 assert!((flipped + rd).abs() < 1e-9);
             }
         }
         // The paper's b = √(½d² − a²) would not hold the source.
         let (p, q) = (ARRAYS[1], ARRAYS[2]);
-        let rd = dist(SOURCE, p) - dist(SOURCE, q);
+        let rd = distance(SOURCE, p) - distance(SOURCE, q);
         let h = Hyperboloid::new(p, q, rd).unwrap();
-        let d2 = dist(p, q).powi(2);
+        let d2 = distance(p, q).powi(2);
         let paper = Hyperboloid { b_m: (0.5 * d2 - h.a_m * h.a_m).sqrt(), ..h };
         assert!(paper.value(SOURCE).abs() > 0.1, "{}", paper.value(SOURCE));
         assert!(Hyperboloid::new(p, q, 0.0).is_none() && Hyperboloid::new(p, q, 20.0).is_none());
@@ -405,7 +403,7 @@ mod tests {
             .map(|k| RangeDifference {
                 p: line[k],
                 q: line[0],
-                metres: dist(source, line[k]) - dist(source, line[0]),
+                metres: distance(source, line[k]) - distance(source, line[0]),
                 sigma_m: 0.01,
             })
             .collect();
@@ -437,7 +435,7 @@ mod tests {
         dup.push(RangeDifference {
             p: ARRAYS[1],
             q: ARRAYS[2],
-            metres: dist(SOURCE, ARRAYS[1]) - dist(SOURCE, ARRAYS[2]),
+            metres: distance(SOURCE, ARRAYS[1]) - distance(SOURCE, ARRAYS[2]),
             sigma_m: 0.01,
         });
         assert_eq!(

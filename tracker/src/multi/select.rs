@@ -10,6 +10,8 @@
 //! [`crate::doa::DoaState::erratic_rad`]), so that a drone moving across an array's view is not
 //! taken for an unstable array.
 
+use crate::observation::distance;
+
 /// One array, as Algorithm 1 sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Candidate {
@@ -43,17 +45,13 @@ pub enum SelectionError {
 /// A triangle flatter than this (area / longest side²) counts as collinear.
 pub const COLLINEAR_RATIO: f64 = 0.01;
 
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
 /// Area of the triangle abc divided by its longest side squared.
 fn flatness(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
     let cross = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
     let area = 0.5 * (cross[0].powi(2) + cross[1].powi(2) + cross[2].powi(2)).sqrt();
-    let longest = dist(a, b).max(dist(a, c)).max(dist(b, c));
+    let longest = distance(a, b).max(distance(a, c)).max(distance(b, c));
     if longest > 0.0 {
         area / (longest * longest)
     } else {
@@ -86,7 +84,7 @@ pub fn select_arrays(
         for q in p + 1..n {
             for s in q + 1..n {
                 let (a, b, c) = (stable[p].position, stable[q].position, stable[s].position);
-                let product = dist(a, b) * dist(a, c) * dist(b, c);
+                let product = distance(a, b) * distance(a, c) * distance(b, c);
                 if best.is_none_or(|(m, _)| product > m) {
                     best = Some((product, [p, q, s]));
                 }
