@@ -382,11 +382,10 @@ fn array_pose(
     }
     // Two arrays closer than one array's width are a copy-paste slip: they would share their
     // microphones' places and give the fusion no baseline.
-    let apart = |p: &ArrayPose| {
-        p.position.iter().zip(&position).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt()
-    };
-    if let Some((other, d)) =
-        earlier.iter().map(|p| (p, apart(p))).find(|&(_, d)| d < MIN_ARRAY_SEPARATION_M)
+    if let Some((other, d)) = earlier
+        .iter()
+        .map(|p| (p, crate::observation::distance(p.position, position)))
+        .find(|&(_, d)| d < MIN_ARRAY_SEPARATION_M)
     {
         return Err(err(
             a.position.span(),

@@ -353,8 +353,8 @@ pub struct Tracker {
     snippets: SnippetStore,
     /// Time of the last inter-array delay measurement, s.
     last_delays_t: f64,
-    /// Newest output instant whose filter step had another array's bearing or a range
-    /// difference, s.
+    /// Newest output instant whose estimate took another array's bearing or a range
+    /// difference ([`crate::filter::Estimate::crossed`]), s.
     last_crossed_t: f64,
     /// Per array, the time of its newest `Peaks` frame with a rotor signature, s (every
     /// array's: a take-over goes on with what the new array heard).
@@ -1320,13 +1320,11 @@ impl SingleArrayError {
         let f = if los { 1.0 } else { self.nlos_factor };
         let along_sigma = f * (self.range_m + self.range_rel * r);
         let cross_sigma = f * (self.cross_m + self.cross_rel * r);
-        let along = if r > 0.0 { d * d.transpose() / (r * r) } else { nalgebra::Matrix3::zeros() };
-        let across = nalgebra::Matrix3::identity() - along;
-        if r > 0.0 {
-            along * along_sigma.powi(2) + across * cross_sigma.powi(2)
-        } else {
-            across * along_sigma.max(cross_sigma).powi(2)
+        if r == 0.0 {
+            return nalgebra::Matrix3::identity() * along_sigma.max(cross_sigma).powi(2);
         }
+        let along = d * d.transpose() / (r * r);
+        along * along_sigma.powi(2) + (nalgebra::Matrix3::identity() - along) * cross_sigma.powi(2)
     }
 }
 
@@ -1371,7 +1369,7 @@ mod tests {
     /// single-array model adds there ((2.5 + 0.3 r)², × 1.5² out of LoS; m²).
     fn along_ray_variance(f: &Fix) -> (f64, f64) {
         let model = SingleArrayError::default();
-        let r = (0..3).map(|i| f.position[i].powi(2)).sum::<f64>().sqrt();
+        let r = crate::observation::norm(f.position);
         let u: [f64; 3] = std::array::from_fn(|i| f.position[i] / r);
         let v: f64 = (0..3)
             .flat_map(|i| (0..3).map(move |j| (i, j)))
