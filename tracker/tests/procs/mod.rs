@@ -50,18 +50,24 @@ impl Proc {
     /// Waits for a stderr line starting with `prefix`; returns it. Fails if the process ends
     /// first or [`PATIENCE`] passes.
     pub fn wait_for(&mut self, prefix: &str) -> String {
+        self.wait_until(&format!("{prefix:?}"), |line| line.starts_with(prefix))
+    }
+
+    /// Waits for a stderr line for which `is_it` holds (`what` names it in the failure);
+    /// returns it. Fails if the process ends first or [`PATIENCE`] passes.
+    pub fn wait_until(&mut self, what: &str, is_it: impl Fn(&str) -> bool) -> String {
         let deadline = Instant::now() + PATIENCE;
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             match self.stderr.recv_timeout(left) {
                 Ok(line) => {
                     self.said.push(line.clone());
-                    if line.starts_with(prefix) {
+                    if is_it(&line) {
                         return line;
                     }
                 }
                 Err(e) => panic!(
-                    "{} never said {prefix:?} ({e:?}); it said:\n{}",
+                    "{} never said {what} ({e:?}); it said:\n{}",
                     self.name,
                     self.said.join("\n")
                 ),
