@@ -128,6 +128,28 @@ fn per_recording_scores_the_live_verdict_once_per_recording() {
     assert_eq!((&w["scored"], &r["scored"]), (&"windows".into(), &"recordings".into()));
     let one = eval(&long, &["--per-recording", "--decision-windows", "1"]);
     assert_eq!(one["clips"], 7);
+    // `--scores`: one row per recording, whose verdicts are the confusion matrix's.
+    let csv = root.join("scores.csv");
+    let with = eval(&long, &["--per-recording", "--scores", csv.to_str().unwrap()]);
+    assert_eq!(with["confusion"], r["confusion"]);
+    let classes: Vec<String> = serde_json::from_value(r["confusion"]["classes"].clone()).unwrap();
+    let mut counts = vec![vec![0u64; classes.len()]; classes.len()];
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("path,class,drone_probability,verdict"));
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        assert!(f[0].ends_with(".wav") && f[0].contains(f[1]), "{line}");
+        let p: f64 = f[2].parse().unwrap();
+        assert!((0.0..=1.0).contains(&p), "{line}");
+        let at = |name: &str| classes.iter().position(|c| c == name).expect(line);
+        counts[at(f[1])][at(f[3])] += 1;
+    }
+    let want: Vec<Vec<u64>> = serde_json::from_value(r["confusion"]["counts"].clone()).unwrap();
+    assert_eq!(counts, want);
+    assert!(aim(&["eval", long.to_str().unwrap(), "--model", model, "--scores", "x.csv"])
+        .stderr
+        .starts_with(b"error"));
     std::fs::remove_dir_all(&root).unwrap();
 }
 

@@ -107,6 +107,10 @@ struct EvalArgs {
     #[arg(long, default_value_t = chip::TYPE_WINDOWS as u16, requires = "per_recording",
           value_parser = clap::value_parser!(u16).range(1..=100))]
     type_windows: u16,
+    /// With `--per-recording`: also write every recording's score to this CSV file (`path`,
+    /// `class`, `drone_probability`, `verdict`), to see which recordings the errors are.
+    #[arg(long, requires = "per_recording")]
+    scores: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -288,6 +292,31 @@ fn recording_probabilities(
     Ok(v.probabilities.clone())
 }
 
+/// Writes `aim id eval --scores`: one CSV row per recording, in the order scored.
+fn write_scores(
+    path: &Path,
+    m: &model::Model,
+    recordings: &[(&Path, usize)],
+    scores: &[(Vec<f32>, usize)],
+) -> anyhow::Result<()> {
+    let mut csv = String::from("path,class,drone_probability,verdict\n");
+    for ((file, label), (p, _)) in recordings.iter().zip(scores) {
+        let verdict = m.decide(p);
+        let file = file.display().to_string();
+        let file = match file.contains([',', '"', '\n']) {
+            true => format!("\"{}\"", file.replace('"', "\"\"")),
+            false => file,
+        };
+        csv += &format!(
+            "{file},{},{:.6},{}\n",
+            m.classes[*label],
+            m.drone_probability(p),
+            m.classes[verdict]
+        );
+    }
+    std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))
+}
+
 /// Most passes over the training set `aim id train` takes.
 const MAX_EPOCHS: usize = 100_000;
 /// Most hidden units of a network (4096: a 4096 × 69 layer and its output, about 1 MB).
@@ -386,20 +415,27 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
             )
         })
     };
+    if let Some(path) = &a.scores {
+        check_writable(path)?;
+    }
+    let mut recordings: Vec<(&Path, usize)> = Vec::new();
     let scores: Vec<(Vec<f32>, usize)> = if a.per_recording {
-        let mut jobs = Vec::new();
+        let jobs = &mut recordings;
         for c in &classes {
             let label = index(&c.name)?;
             jobs.extend(c.files.iter().map(|f| (f.as_path(), label)));
         }
         let (windows, types) = (usize::from(a.decision_windows), usize::from(a.type_windows));
-        on_every_core(&jobs, |ex, &(path, label)| {
+        on_every_core(jobs, |ex, &(path, label)| {
             Ok((recording_probabilities(&m, path, ex, windows, types)?, label))
         })?
     } else {
         let (x, y) = load(&classes, m.reads_chip_frames(), None, index)?;
         x.iter().zip(y).map(|(v, y)| (m.predict(v), y)).collect()
     };
+    if let Some(path) = &a.scores {
+        write_scores(path, &m, &recordings, &scores)?;
+    }
     let none = m.none_index();
     let mut confusion = metrics::Confusion::new(m.classes.clone());
     let (mut pos, mut neg) = (Vec::new(), Vec::new());
