@@ -46,9 +46,10 @@ fn the_bundled_model_names_held_out_simulated_drones_from_the_chips_frames() {
 }
 
 #[test]
-fn the_live_verdict_is_the_mean_of_the_last_three_disjoint_windows() {
-    // A 6 s clip: 22 frames. The verdict after frame k (0-based, k ≥ 5) averages the windows
-    // ending at k, k − 6 and k − 12 where they exist; `window_probabilities` is the newest.
+fn the_live_verdict_pools_the_last_three_disjoint_windows() {
+    // A 6 s clip: 22 frames. The verdict after frame k (0-based, k ≥ 5) pools the windows
+    // ending at k, k − 6 and k − 12 where they exist (`none` by its mean log-odds, the drone
+    // classes by their mean, scaled to the rest); `window_probabilities` is the newest.
     // (The type's longer span has no more windows than these in 6 s.)
     let model = default_model();
     let x = clip("consumer-400g", iddata::clip_seed(5, 7_200_000), 16_000, 6.0);
@@ -70,6 +71,8 @@ fn the_live_verdict_is_the_mean_of_the_last_three_disjoint_windows() {
         for e in &ends {
             mean.iter_mut().zip(window(*e)).for_each(|(a, b)| *a += b / ends.len() as f32);
         }
+        let mean =
+            with_pooled_none(&model, mean, &ends.iter().map(|&e| window(e)).collect::<Vec<_>>());
         for (a, b) in v.probabilities.iter().zip(&mean) {
             assert!((a - b).abs() < 1e-6, "frame {k}: {:?} against {mean:?}", v.probabilities);
         }
@@ -93,8 +96,9 @@ fn the_live_verdict_is_the_mean_of_the_last_three_disjoint_windows() {
 #[test]
 fn a_drones_type_takes_up_to_six_windows_and_is_forgotten_once_it_is_gone() {
     // 14 s of a Mini 2, then 12 s with no drone, then the Mini 2 again. Oracle: the windows'
-    // probabilities from the model itself; `none`'s is the mean over the last three disjoint
-    // windows, each drone class's the mean over up to six, scaled to the three windows' drone
+    // probabilities from the model itself; `none`'s is pooled by its mean log-odds over the
+    // last three disjoint windows, each drone class's the mean over up to six, scaled to the
+    // three windows' drone
     // probability. With the bundled model, and with it without its detection threshold
     // (presence then by the most probable class of the three windows).
     let frames_of = |class: &str, seed: u64, secs: f64| -> Vec<aim_wire::Mfcc> {
@@ -109,6 +113,28 @@ fn a_drones_type_takes_up_to_six_windows_and_is_forgotten_once_it_is_gone() {
     for model in [default_model(), threshold_less] {
         type_span_follows_the_drone(&model, &frames, drone.len());
     }
+}
+
+/// `mean` (the windows' mean probabilities) with `none`'s probability replaced by the one of
+/// the mean of the `windows`' log-odds (each clamped to 1e-6..1 − 1e-6), and the other classes
+/// scaled to share the rest.
+fn with_pooled_none(
+    model: &aim_tracker::id::model::Model,
+    mut mean: Vec<f32>,
+    windows: &[Vec<f32>],
+) -> Vec<f32> {
+    let none = model.none_index().unwrap();
+    let logit = |p: f32| {
+        let p = f64::from(p).clamp(1e-6, 1.0 - 1e-6);
+        (p / (1.0 - p)).ln()
+    };
+    let l = windows.iter().map(|w| logit(w[none])).sum::<f64>() / windows.len() as f64;
+    let pooled = (1.0 / (1.0 + (-l).exp())) as f32;
+    let rest = 1.0 - mean[none];
+    for (c, p) in mean.iter_mut().enumerate() {
+        *p = if c == none { pooled } else { *p / rest * (1.0 - pooled) };
+    }
+    mean
 }
 
 /// The oracle of the test above on `frames` (a drone's first `drone_len` frames, none, the
@@ -127,6 +153,9 @@ fn type_span_follows_the_drone(
         }
         m
     };
+    let pooled = |ends: &[usize]| {
+        with_pooled_none(model, mean(ends), &ends.iter().map(|&e| window(e)).collect::<Vec<_>>())
+    };
     let ends = |k: usize, n: usize, first: usize| -> Vec<usize> {
         (0..n).filter_map(|j| k.checked_sub(6 * j)).filter(|&e| e >= first).collect()
     };
@@ -142,7 +171,7 @@ fn type_span_follows_the_drone(
         }
         let v = live.verdict().unwrap();
         let short = ends(k, 3, 5);
-        let detection = mean(&short);
+        let detection = pooled(&short);
         // Gone for 18 verdicts (three windows' worth): the type starts again.
         none_run = if model.decide(&detection) == none { none_run + 1 } else { 0 };
         if none_run >= 18 {

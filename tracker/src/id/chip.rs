@@ -282,8 +282,42 @@ pub struct Live {
     verdict: Option<Verdict>,
 }
 
-/// The classifier's verdict. Whether a drone is there: the mean probability of `none` over
-/// the newest window and up to [`DECISION_WINDOWS`] − 1 earlier disjoint ones. Which drone:
+/// Smallest and largest probability [`pooled_probability`] takes from a window (its log-odds
+/// are finite; a window's `f32` probability of exactly 0 or 1 would otherwise decide alone).
+const POOL_CLAMP: f64 = 1e-6;
+
+/// The probability whose log-odds are the mean of `windows`' log-odds (each clamped to
+/// [`POOL_CLAMP`]..1 − [`POOL_CLAMP`]): the geometric pooling of independent windows' evidence,
+/// where a plain mean lets one confident window outvote the others. 0.5 for no window.
+pub fn pooled_probability(windows: &[f32]) -> f32 {
+    if windows.is_empty() {
+        return 0.5;
+    }
+    let logit = |p: f32| {
+        let p = f64::from(p).clamp(POOL_CLAMP, 1.0 - POOL_CLAMP);
+        (p / (1.0 - p)).ln()
+    };
+    let mean = windows.iter().map(|&p| logit(p)).sum::<f64>() / windows.len() as f64;
+    (1.0 / (1.0 + (-mean).exp())) as f32
+}
+
+/// Sets `p[none]` to `pooled` and scales the other classes to share the rest in their
+/// proportions (all equal if they had nothing).
+fn pool_none(p: &mut [f32], none: usize, pooled: f32) {
+    let rest: f32 = (0..p.len()).filter(|&c| c != none).map(|c| p[c]).sum();
+    let others = p.len().saturating_sub(1).max(1) as f32;
+    for (c, v) in p.iter_mut().enumerate() {
+        *v = match c {
+            c if c == none => pooled,
+            _ if rest > 0.0 => *v / rest * (1.0 - pooled),
+            _ => (1.0 - pooled) / others,
+        };
+    }
+}
+
+/// The classifier's verdict. Whether a drone is there: the probability of `none` pooled
+/// ([`pooled_probability`], the mean of the log-odds) over the newest window and up to
+/// [`DECISION_WINDOWS`] − 1 earlier disjoint ones. Which drone:
 /// the drone classes' mean probabilities over up to [`TYPE_WINDOWS`] disjoint windows since
 /// the type's evidence began (never fewer than the detection's; `none` for as long as the
 /// detection's span starts it again), scaled to share the detection's drone probability.
@@ -378,8 +412,15 @@ impl Live {
             }
             (p, used.len())
         };
-        let (detection, windows) = mean_of(self.decision_windows);
+        let (mut detection, windows) = mean_of(self.decision_windows);
         let none = self.model.none_index();
+        if let Some(none) = none {
+            let of_none: Vec<f32> = (0..self.decision_windows)
+                .filter_map(|i| n.checked_sub(1 + i * WINDOW_FRAMES))
+                .map(|i| self.history[i][none])
+                .collect();
+            pool_none(&mut detection, none, pooled_probability(&of_none));
+        }
         let detected = none != Some(self.model.decide(&detection));
         // A drone gone for as long as the detection's span takes its type with it (another
         // may come; the windows heard while it was gone are not its evidence); a verdict of
@@ -444,6 +485,27 @@ impl Live {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Pooling by the mean log-odds, against hand values: opposite evidence cancels, equal
+    /// windows keep their value, two windows at 0.9 and one at 0.1 give the probability of
+    /// log-odds ln(9)/3 (1/(1 + 9^(−1/3)) = 0.6753), where the plain mean would be 0.6333; a
+    /// window at exactly 0 or 1 is clamped, not decisive. The other classes keep their shares.
+    #[test]
+    fn windows_pool_by_their_mean_log_odds() {
+        let close = |a: f32, b: f32| (a - b).abs() < 1e-5;
+        assert!(close(pooled_probability(&[0.9, 0.1]), 0.5));
+        assert!(close(pooled_probability(&[0.8, 0.8]), 0.8));
+        let hand = 1.0 / (1.0 + 9f32.powf(-1.0 / 3.0));
+        assert!(close(pooled_probability(&[0.9, 0.9, 0.1]), hand), "{hand}");
+        assert!(close(pooled_probability(&[1.0, 0.0]), 0.5));
+        assert!(close(pooled_probability(&[]), 0.5));
+        let mut p = [0.2f32, 0.5, 0.3];
+        pool_none(&mut p, 1, 0.8);
+        assert!(close(p[1], 0.8) && close(p[0], 0.08) && close(p[2], 0.12), "{p:?}");
+        let mut q = [0.0f32, 1.0, 0.0];
+        pool_none(&mut q, 1, 0.4);
+        assert!(close(q[0], 0.3) && close(q[2], 0.3), "{q:?}");
+    }
 
     /// The fractional delay reproduces a delayed tone (oracle: sin(2πf(n − d)/fs)) within
     /// 1e-3 of full scale away from the edges, for delays of either sign.
