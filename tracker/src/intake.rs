@@ -253,6 +253,13 @@ impl Intake {
         &self.stats
     }
 
+    /// How far the array's current time base is moved from its clock as the site file maps it,
+    /// s (non-zero once the array was placed on the link's time,
+    /// [`IntakeStats::aligned_to_link`], and after a reboot); `None` before its first frame.
+    pub fn shift_s(&self, array: u16) -> Option<f64> {
+        self.arrays.get(&array)?.timeline.map(|t| t.shift_s)
+    }
+
     /// Its tunables.
     pub fn config(&self) -> &IntakeConfig {
         &self.config
@@ -711,6 +718,10 @@ mod tests {
         assert!((last(2) - last(1)).abs() < 0.5, "{} against {}", last(2), last(1));
         assert!((last(3) - last(1) - 0.5).abs() < 1e-9, "{} against {}", last(3), last(1));
         assert_eq!(intake.stats().aligned_to_link, 1);
+        // Array 2's sample 0 was put 100 s before array 1's, as the link places it.
+        assert!((intake.shift_s(2).unwrap() + 100.0).abs() < 0.5, "{:?}", intake.shift_s(2));
+        assert_eq!((intake.shift_s(1), intake.shift_s(3)), (Some(0.0), Some(0.0)));
+        assert_eq!(intake.shift_s(4), None);
     }
 
     #[test]

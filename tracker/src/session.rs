@@ -360,6 +360,13 @@ impl Session {
             feed(tracker, span, r, &mut fixes)
         })?;
         note_time_base(frame.header.array_id, &before, self.intake.stats(), self.intake.config());
+        if self.intake.stats().aligned_to_link > before.aligned_to_link {
+            let shift = self.intake.shift_s(frame.header.array_id.into()).unwrap_or(f64::NAN);
+            eprintln!(
+                "note: {}",
+                placed_on_link_time(frame.header.array_id, shift, self.tracker.clock().is_some())
+            );
+        }
         if self.tracker.takeovers() != takeovers {
             eprintln!(
                 "note: array {} took over the track from array {tracked}",
@@ -516,6 +523,25 @@ fn note_time_base(array: u8, before: &IntakeStats, after: &IntakeStats, config: 
     }
 }
 
+/// What the operator is told when array `array`'s first frames were `shift_s` from the other
+/// arrays' newest audio by its clock and the site file, and were placed on the link's time
+/// instead ([`crate::intake::IntakeStats::aligned_to_link`]); `beacon`: a beacon's clock model
+/// will time the arrays' bearings anyway.
+fn placed_on_link_time(array: u8, shift_s: f64, beacon: bool) -> String {
+    let then = if beacon {
+        "the beacon's clock model times its bearings once it has heard the beacon"
+    } else {
+        "with no beacon in the site file, the bearings fused across arrays are timed only that \
+         well (set the array's clock_offset_s, or add a [[beacon]])"
+    };
+    let (by, side) = (shift_s.abs(), if shift_s < 0.0 { "after" } else { "before" });
+    format!(
+        "array {array}'s clock put its first frames {by:.1} s {side} the other arrays' newest \
+         audio (started at another time than the site file's clock_offset_s says); it is placed \
+         on the link's time instead, good to the link's latency (a few tenths of a second); {then}"
+    )
+}
+
 /// Keeps `r` in the re-tracking history, which is dropped once it would exceed
 /// [`RETRACK_HISTORY`] items.
 fn keep(history: &mut Option<Vec<Released>>, r: &Released) {
@@ -607,5 +633,16 @@ mod tests {
         assert!((bpf_fit(&[two_below], hover) - (-2.0f64).exp()).abs() < 1e-12);
         assert_eq!(bpf_fit(&[], hover), 0.0);
         assert_eq!(bpf_fit(&[0.0, -5.0], hover), 0.0);
+    }
+
+    /// The note names the array, how far and on which side its clock put it (a board whose
+    /// clock reads ahead was moved back: a negative shift), and what times the fused bearings.
+    #[test]
+    fn the_link_time_note_says_how_far_and_what_follows() {
+        let ahead = placed_on_link_time(2, -100.04, false);
+        assert!(ahead.starts_with("array 2's clock put its first frames 100.0 s after"), "{ahead}");
+        assert!(ahead.contains("no beacon") && ahead.contains("clock_offset_s"), "{ahead}");
+        let behind = placed_on_link_time(3, 7.5, true);
+        assert!(behind.contains("7.5 s before") && behind.contains("beacon's clock model"));
     }
 }
