@@ -525,20 +525,22 @@ fn note_time_base(array: u8, before: &IntakeStats, after: &IntakeStats, config: 
 
 /// What the operator is told when array `array`'s first frames were `shift_s` from the other
 /// arrays' newest audio by its clock and the site file, and were placed on the link's time
-/// instead ([`crate::intake::IntakeStats::aligned_to_link`]); `beacon`: a beacon's clock model
-/// will time the arrays' bearings anyway.
+/// instead ([`crate::intake::IntakeStats::aligned_to_link`]); `beacon`: the site has a beacon,
+/// whose clock model times the inter-array range differences (not the bearings) once synced.
 fn placed_on_link_time(array: u8, shift_s: f64, beacon: bool) -> String {
-    let then = if beacon {
-        "the beacon's clock model times its bearings once it has heard the beacon"
-    } else {
-        "with no beacon in the site file, the bearings fused across arrays are timed only that \
-         well (set the array's clock_offset_s, or add a [[beacon]])"
-    };
     let (by, side) = (shift_s.abs(), if shift_s < 0.0 { "after" } else { "before" });
+    let beacon = if beacon {
+        " (the beacon's clock model times the range differences of the arrays' snippets once \
+         synced, not the bearings)"
+    } else {
+        ""
+    };
     format!(
         "array {array}'s clock put its first frames {by:.1} s {side} the other arrays' newest \
          audio (started at another time than the site file's clock_offset_s says); it is placed \
-         on the link's time instead, good to the link's latency (a few tenths of a second); {then}"
+         on the link's time instead, good to the link's latency (a few tenths of a second), and \
+         its bearings fused with the other arrays' are timed only that well{beacon}; set its \
+         clock_offset_s for better"
     )
 }
 
@@ -641,8 +643,9 @@ mod tests {
     fn the_link_time_note_says_how_far_and_what_follows() {
         let ahead = placed_on_link_time(2, -100.04, false);
         assert!(ahead.starts_with("array 2's clock put its first frames 100.0 s after"), "{ahead}");
-        assert!(ahead.contains("no beacon") && ahead.contains("clock_offset_s"), "{ahead}");
+        assert!(ahead.contains("timed only that well; set its clock_offset_s"), "{ahead}");
+        assert!(!ahead.contains("beacon"), "{ahead}");
         let behind = placed_on_link_time(3, 7.5, true);
-        assert!(behind.contains("7.5 s before") && behind.contains("beacon's clock model"));
+        assert!(behind.contains("7.5 s before") && behind.contains("not the bearings"), "{behind}");
     }
 }

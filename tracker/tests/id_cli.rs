@@ -130,6 +130,11 @@ fn per_recording_scores_the_live_verdict_once_per_recording() {
     assert_eq!(one["clips"], 7);
     // `--scores`: one row per recording, whose verdicts are the confusion matrix's.
     let csv = root.join("scores.csv");
+    let threshold: f64 =
+        serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(model).unwrap())
+            .unwrap()["drone_threshold"]
+            .as_f64()
+            .unwrap();
     let with = eval(&long, &["--per-recording", "--scores", csv.to_str().unwrap()]);
     assert_eq!(with["confusion"], r["confusion"]);
     let classes: Vec<String> = serde_json::from_value(r["confusion"]["classes"].clone()).unwrap();
@@ -144,6 +149,9 @@ fn per_recording_scores_the_live_verdict_once_per_recording() {
         assert!((0.0..=1.0).contains(&p), "{line}");
         let at = |name: &str| classes.iter().position(|c| c == name).expect(line);
         counts[at(f[1])][at(f[3])] += 1;
+        // The verdict is `none` exactly when the drone probability is not above the model's
+        // threshold (read from the model file here).
+        assert_eq!(f[3] == "none", p <= threshold + 5e-7, "{line} (threshold {threshold})");
     }
     let want: Vec<Vec<u64>> = serde_json::from_value(r["confusion"]["counts"].clone()).unwrap();
     assert_eq!(counts, want);

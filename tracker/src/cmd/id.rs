@@ -301,20 +301,24 @@ fn write_scores(
 ) -> anyhow::Result<()> {
     let mut csv = String::from("path,class,drone_probability,verdict\n");
     for ((file, label), (p, _)) in recordings.iter().zip(scores) {
-        let verdict = m.decide(p);
-        let file = file.display().to_string();
-        let file = match file.contains([',', '"', '\n']) {
-            true => format!("\"{}\"", file.replace('"', "\"\"")),
-            false => file,
-        };
         csv += &format!(
-            "{file},{},{:.6},{}\n",
-            m.classes[*label],
+            "{},{},{:.6},{}\n",
+            csv_field(&file.display().to_string()),
+            csv_field(&m.classes[*label]),
             m.drone_probability(p),
-            m.classes[verdict]
+            csv_field(&m.classes[m.decide(p)])
         );
     }
     std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// `text` as one CSV field (RFC 4180): in double quotes, its quotes doubled, when it holds a
+/// comma, a quote or a line break; as it is otherwise.
+fn csv_field(text: &str) -> String {
+    match text.contains([',', '"', '\n', '\r']) {
+        true => format!("\"{}\"", text.replace('"', "\"\"")),
+        false => text.to_string(),
+    }
 }
 
 /// Most passes over the training set `aim id train` takes.
@@ -326,17 +330,17 @@ const MAX_MEMBERS: usize = 32;
 
 /// An error now, not after the training, if `path` cannot be written (its folder missing or
 /// read-only): a probe file beside it is made and removed.
-fn check_writable(path: &Path) -> anyhow::Result<()> {
+fn check_writable(flag: &str, path: &Path) -> anyhow::Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let probe = dir.join(format!(".aim-id-train-{}.probe", std::process::id()));
+    let probe = dir.join(format!(".aim-id-{}.probe", std::process::id()));
     std::fs::write(&probe, b"")
-        .with_context(|| format!("--out {}: cannot write in {}", path.display(), dir.display()))?;
+        .with_context(|| format!("{flag} {}: cannot write in {}", path.display(), dir.display()))?;
     let _ = std::fs::remove_file(&probe);
     if path.is_dir() {
-        bail!("--out {} is a folder; give a file name", path.display());
+        bail!("{flag} {} is a folder; give a file name", path.display());
     }
     if path.exists() {
         // Opened to append, not truncated: an existing model stays as it is until the new
@@ -344,7 +348,7 @@ fn check_writable(path: &Path) -> anyhow::Result<()> {
         std::fs::OpenOptions::new()
             .append(true)
             .open(path)
-            .with_context(|| format!("--out {}: cannot be written", path.display()))?;
+            .with_context(|| format!("{flag} {}: cannot be written", path.display()))?;
     }
     Ok(())
 }
@@ -368,7 +372,7 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
             bail!("{flag} must be {} to {}, not {value}", range.start(), range.end());
         }
     }
-    check_writable(&a.out)?;
+    check_writable("--out", &a.out)?;
     let arrivals = (chip_frames && a.array_share > 0.0).then_some((a.array_share, a.seed));
     let (x, y) = load(&classes, chip_frames, arrivals, |n| {
         Ok(names.iter().position(|c| c == n).unwrap_or(0))
@@ -416,7 +420,7 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         })
     };
     if let Some(path) = &a.scores {
-        check_writable(path)?;
+        check_writable("--scores", path)?;
     }
     let mut recordings: Vec<(&Path, usize)> = Vec::new();
     let scores: Vec<(Vec<f32>, usize)> = if a.per_recording {
@@ -615,6 +619,16 @@ fn classify(a: ClassifyArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// RFC 4180 fields: plain text as it is; a comma, quote or line break quoted, quotes
+    /// doubled.
+    #[test]
+    fn csv_fields_are_quoted_when_they_must_be() {
+        assert_eq!(csv_field("a/b c.wav"), "a/b c.wav");
+        assert_eq!(csv_field("x,y.wav"), "\"x,y.wav\"");
+        assert_eq!(csv_field("say \"hi\""), "\"say \"\"hi\"\"\"\"");
+        assert_eq!(csv_field("a\r\nb"), "\"a\r\nb\"");
+    }
 
     /// Results come back in the jobs' order on any number of threads, and the first error
     /// in job order is the one returned.

@@ -270,7 +270,7 @@ pub struct Live {
     /// Probabilities of the windows ending at the last frames, newest last (at most
     /// `(max(decision_windows, type_windows) − 1)·WINDOW_FRAMES + 1`).
     history: std::collections::VecDeque<Vec<f32>>,
-    /// Disjoint windows the detection averages ([`DECISION_WINDOWS`] unless set).
+    /// Disjoint windows the detection pools ([`DECISION_WINDOWS`] unless set).
     decision_windows: usize,
     /// Most disjoint windows the type averages ([`TYPE_WINDOWS`] unless set).
     type_windows: usize,
@@ -288,7 +288,8 @@ const POOL_CLAMP: f64 = 1e-6;
 
 /// The probability whose log-odds are the mean of `windows`' log-odds (each clamped to
 /// [`POOL_CLAMP`]..1 − [`POOL_CLAMP`]): the geometric pooling of independent windows' evidence,
-/// where a plain mean lets one confident window outvote the others. 0.5 for no window.
+/// where a plain mean lets one confident window outvote the others. 0.5 for no window; NaN
+/// if a window's probability is NaN (a broken model, not a verdict).
 pub fn pooled_probability(windows: &[f32]) -> f32 {
     if windows.is_empty() {
         return 0.5;
@@ -336,7 +337,7 @@ pub struct Verdict {
     pub probabilities: Vec<f32>,
     /// The newest window's probabilities alone, in the model's class order.
     pub window_probabilities: Vec<f32>,
-    /// Windows the detection averaged (1 to the classifier's decision windows,
+    /// Windows the detection pooled (1 to the classifier's decision windows,
     /// [`DECISION_WINDOWS`] by default).
     pub windows: usize,
     /// Windows the type averaged (at least `windows`, at most the classifier's type windows).
