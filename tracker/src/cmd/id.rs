@@ -626,7 +626,7 @@ mod tests {
     fn csv_fields_are_quoted_when_they_must_be() {
         assert_eq!(csv_field("a/b c.wav"), "a/b c.wav");
         assert_eq!(csv_field("x,y.wav"), "\"x,y.wav\"");
-        assert_eq!(csv_field("say \"hi\""), "\"say \"\"hi\"\"\"\"");
+        assert_eq!(csv_field("say \"hi\""), r#""say ""hi""""#);
         assert_eq!(csv_field("a\r\nb"), "\"a\r\nb\"");
     }
 
