@@ -220,6 +220,8 @@ struct ArrayState {
     released_until: f64,
     /// Boot count of the array's latest `Hello`.
     boot_count: Option<u32>,
+    /// Microphones of the array by its latest `Hello` (before one: the site file's, if given).
+    mics: Option<usize>,
     /// What a `Hello` that announced a reboot changed, until the next frame tells whether the
     /// board really restarted.
     before_reboot: Option<BeforeReboot>,
@@ -295,6 +297,7 @@ impl Intake {
                 let rebooted = state.boot_count.is_some_and(|b| b != h.boot_count);
                 let previous_boot = state.boot_count;
                 state.boot_count = Some(h.boot_count);
+                state.mics = Some(h.mic_positions_decimm.len());
                 // A new boot counts from zero again: its Hello's index lies behind the old
                 // boot's newest audio.
                 let went_back = |old: &Timeline| frame.header.sample_index < old.newest_end;
@@ -423,7 +426,12 @@ impl Intake {
             }
             // An output describes the samples [index, index + span): it is stamped at their
             // middle.
-            if let Some(input) = input_of(id, f.header.sample_index, &f.body, time(s + 0.5 * span))
+            let mics = state
+                .mics
+                .or((!pose.mic_positions_m.is_empty()).then_some(pose.mic_positions_m.len()));
+            let pairs = mics.map(|n| n * n.saturating_sub(1) / 2);
+            if let Some(input) =
+                input_of(id, f.header.sample_index, &f.body, time(s + 0.5 * span), pairs)
             {
                 if input.t() < state.released_until {
                     self.stats.late += 1;
@@ -544,6 +552,22 @@ fn frame_span(frame: &Frame) -> u32 {
     }
 }
 
+/// A `Doa` frame's quality (the chip's mean over all `pairs` of the array, times the share the
+/// robust fit kept) as the mean over the `pairs_used` pairs that carried weight. A dead
+/// microphone leaves its n − 1 pairs without a peak in every frame, which would lower every
+/// frame's quality by that share (a third on a 6-mic array) and, below the LoS test's minimum,
+/// call every bearing of a working array out of line of sight. Unchanged when every pair was
+/// used (a healthy array, in every frame the simulator's suites make), when `pairs_used` is 0
+/// (firmware that does not count them) or when the pair count is unknown.
+fn quality_of_used_pairs(quality: f64, pairs_used: u8, pairs: Option<usize>) -> f64 {
+    match pairs {
+        Some(n) if pairs_used > 0 && usize::from(pairs_used) < n => {
+            (quality * n as f64 / f64::from(pairs_used)).min(1.0)
+        }
+        _ => quality,
+    }
+}
+
 /// Index of the sample after the last one a frame describes (its sample index for a frame
 /// without a span).
 pub(crate) fn frame_end(frame: &Frame) -> u64 {
@@ -551,8 +575,15 @@ pub(crate) fn frame_end(frame: &Frame) -> u64 {
 }
 
 /// The tracker input a frame carries, stamped `t`: wire units become radians and linear
-/// amplitudes.
-fn input_of(array_id: u16, sample_index: u64, body: &Body, t: f64) -> Option<Input> {
+/// amplitudes; `pairs`: the array's microphone pairs, if known (for a `Doa` frame's quality,
+/// [`quality_of_used_pairs`]).
+fn input_of(
+    array_id: u16,
+    sample_index: u64,
+    body: &Body,
+    t: f64,
+    pairs: Option<usize>,
+) -> Option<Input> {
     match body {
         Body::Doa(d) => Some(Input::Bearing(Bearing {
             t,
@@ -560,7 +591,7 @@ fn input_of(array_id: u16, sample_index: u64, body: &Body, t: f64) -> Option<Inp
             azimuth_rad: f64::from(d.azimuth_rad()),
             zenith_rad: f64::from(d.zenith_rad()),
             residual: f64::from(d.residual_samples()),
-            quality: f64::from(d.quality()),
+            quality: quality_of_used_pairs(f64::from(d.quality()), d.pairs_used, pairs),
         })),
         Body::Peaks(p) => Some(Input::Spectrum(Spectrum {
             t,
@@ -616,6 +647,52 @@ mod tests {
         intake.push(frame, &mut |r| out.push(r)).unwrap();
     }
 
+    /// A dead microphone of a 6-mic array leaves 10 of its 15 pairs with a peak: the frames'
+    /// quality becomes the mean over those 10 (0.4 · 15/10 = 0.6), the array's count taken from
+    /// its `Hello`; every pair used, no count (0) or no known array: as the chip sent it.
+    #[test]
+    fn a_doa_frames_quality_is_over_the_pairs_that_carried_weight() {
+        assert!((quality_of_used_pairs(0.4, 10, Some(15)) - 0.6).abs() < 1e-12);
+        assert_eq!(quality_of_used_pairs(0.4, 15, Some(15)), 0.4);
+        assert_eq!(quality_of_used_pairs(0.4, 0, Some(15)), 0.4);
+        assert_eq!(quality_of_used_pairs(0.4, 10, None), 0.4);
+        assert_eq!(quality_of_used_pairs(0.9, 1, Some(15)), 1.0);
+        let site = Site {
+            arrays: vec![ArrayPose::new(3, [0.0; 3], 0.0, 0.0, 0.0)],
+            room: None,
+            sample_rate_hz: None,
+        };
+        let mut intake = Intake::new(site, IntakeConfig::default());
+        let mut out = Vec::new();
+        let header = |sample_index| Header { array_id: 3, seq: 0, sample_index };
+        let six: Vec<[f32; 2]> = (0..6)
+            .map(|k| {
+                let a = k as f32 * std::f32::consts::FRAC_PI_3;
+                [0.0463 * a.cos(), 0.0463 * a.sin()]
+            })
+            .collect();
+        let hello = Hello::new([0, 1, 0], 16_000, 1024, &six);
+        collect(&mut intake, &Frame { header: header(0), body: Body::Hello(hello) }, &mut out);
+        for (k, used) in [10u8, 10, 10, 15].into_iter().enumerate() {
+            let doa = Doa { span_samples: 1600, pairs_used: used, ..Doa::new(0.5, 1.0, 0.25, 0.4) };
+            let frame = Frame { header: header(16_000 + 1600 * k as u64), body: Body::Doa(doa) };
+            collect(&mut intake, &frame, &mut out);
+        }
+        intake.finish(&mut |r| out.push(r));
+        let q: Vec<f64> = out
+            .iter()
+            .filter_map(|r| match r {
+                Released::Input(Input::Bearing(b)) => Some(b.quality),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(q.len(), 4, "{out:?}");
+        let sent = f64::from(Doa::new(0.5, 1.0, 0.25, 0.4).quality());
+        for (got, want) in q.iter().zip([1.5 * sent, 1.5 * sent, 1.5 * sent, sent]) {
+            assert!((got - want).abs() < 1e-12, "{q:?}");
+        }
+    }
+
     #[test]
     fn units_times_and_order() {
         let mut pose = ArrayPose::new(3, [0.0; 3], 0.0, 0.0, 0.0);
@@ -667,17 +744,21 @@ mod tests {
     #[test]
     fn a_frame_without_rotor_signature_carries_no_groups() {
         let p = rotor_peaks();
-        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(p.clone()), 0.0) else {
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(p.clone()), 0.0, None) else {
             panic!()
         };
         assert_eq!(s.peaks.len(), 1);
         let none = Peaks { detection: aim_wire::Detection::NoRotor, ..p.clone() };
-        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(none), 0.0) else { panic!() };
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(none), 0.0, None) else {
+            panic!()
+        };
         assert!(s.peaks.is_empty(), "no rotor signature carries no groups");
         // An older frame (no decision) with a BPF still counts as a rotor.
         let older =
             Peaks { detection: aim_wire::Detection::Unstated, quality: heapless::Vec::new(), ..p };
-        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(older), 0.0) else { panic!() };
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(older), 0.0, None) else {
+            panic!()
+        };
         assert_eq!(s.peaks.len(), 1);
     }
 
