@@ -222,6 +222,8 @@ struct ArrayState {
     boot_count: Option<u32>,
     /// Microphones of the array by its latest `Hello` (before one: the site file's, if given).
     mics: Option<usize>,
+    /// `pairs_used` of the array's last [`WORKING_PAIRS_WINDOW`] `Doa` frames, newest last.
+    recent_pairs_used: std::collections::VecDeque<u8>,
     /// What a `Hello` that announced a reboot changed, until the next frame tells whether the
     /// board really restarted.
     before_reboot: Option<BeforeReboot>,
@@ -297,7 +299,7 @@ impl Intake {
                 let rebooted = state.boot_count.is_some_and(|b| b != h.boot_count);
                 let previous_boot = state.boot_count;
                 state.boot_count = Some(h.boot_count);
-                state.mics = Some(h.mic_positions_decimm.len());
+                state.mics = Some(h.mic_positions_decimm.len()).filter(|&n| n >= 2);
                 // A new boot counts from zero again: its Hello's index lies behind the old
                 // boot's newest audio.
                 let went_back = |old: &Timeline| frame.header.sample_index < old.newest_end;
@@ -426,12 +428,20 @@ impl Intake {
             }
             // An output describes the samples [index, index + span): it is stamped at their
             // middle.
-            let mics = state
-                .mics
-                .or((!pose.mic_positions_m.is_empty()).then_some(pose.mic_positions_m.len()));
-            let pairs = mics.map(|n| n * n.saturating_sub(1) / 2);
+            let mut quality_scale = 1.0;
+            if let Body::Doa(d) = &f.body {
+                let recent = &mut state.recent_pairs_used;
+                if recent.len() == WORKING_PAIRS_WINDOW {
+                    recent.pop_front();
+                }
+                recent.push_back(d.pairs_used);
+                let site_mics = pose.mic_positions_m.len();
+                let mics = state.mics.or((site_mics >= 2).then_some(site_mics));
+                let working = recent.iter().copied().max().unwrap_or(0);
+                quality_scale = working_pairs_scale(mics.map(|n| n * (n - 1) / 2), working);
+            }
             if let Some(input) =
-                input_of(id, f.header.sample_index, &f.body, time(s + 0.5 * span), pairs)
+                input_of(id, f.header.sample_index, &f.body, time(s + 0.5 * span), quality_scale)
             {
                 if input.t() < state.released_until {
                     self.stats.late += 1;
@@ -552,19 +562,24 @@ fn frame_span(frame: &Frame) -> u32 {
     }
 }
 
-/// A `Doa` frame's quality (the chip's mean over all `pairs` of the array, times the share the
-/// robust fit kept) as the mean over the `pairs_used` pairs that carried weight. A dead
-/// microphone leaves its n − 1 pairs without a peak in every frame, which would lower every
-/// frame's quality by that share (a third on a 6-mic array) and, below the LoS test's minimum,
-/// call every bearing of a working array out of line of sight. Unchanged when every pair was
-/// used (a healthy array, in every frame the simulator's suites make), when `pairs_used` is 0
-/// (firmware that does not count them) or when the pair count is unknown.
-fn quality_of_used_pairs(quality: f64, pairs_used: u8, pairs: Option<usize>) -> f64 {
+/// `Doa` frames whose largest `pairs_used` is taken as the array's working pairs (5.5 s of
+/// frames; the microphone-health flag of [`crate::status`] looks at as many).
+pub const WORKING_PAIRS_WINDOW: usize = 32;
+
+/// The factor that turns a `Doa` frame's quality (the chip's mean over all `pairs` of the
+/// array, times the share the robust fit kept) into the mean over the array's *working* pairs:
+/// `pairs / working`, `working` the most pairs that carried weight in any of its last
+/// [`WORKING_PAIRS_WINDOW`] fits. A dead microphone leaves its n − 1 pairs without a peak in
+/// every frame, which would lower every frame's quality by that share (a third on a 6-mic
+/// array) and, below the LoS test's minimum, call every bearing of a working array out of line
+/// of sight. A pair that lost its peak in one frame (noise, an obstruction) still counts
+/// against that frame: the count is the array's, not the frame's. 1 when every pair works,
+/// when no frame counted its pairs (`pairs_used` 0: firmware that does not) or when the pair
+/// count is unknown.
+fn working_pairs_scale(pairs: Option<usize>, working: u8) -> f64 {
     match pairs {
-        Some(n) if pairs_used > 0 && usize::from(pairs_used) < n => {
-            (quality * n as f64 / f64::from(pairs_used)).min(1.0)
-        }
-        _ => quality,
+        Some(n) if working > 0 && usize::from(working) < n => n as f64 / f64::from(working),
+        _ => 1.0,
     }
 }
 
@@ -575,14 +590,14 @@ pub(crate) fn frame_end(frame: &Frame) -> u64 {
 }
 
 /// The tracker input a frame carries, stamped `t`: wire units become radians and linear
-/// amplitudes; `pairs`: the array's microphone pairs, if known (for a `Doa` frame's quality,
-/// [`quality_of_used_pairs`]).
+/// amplitudes; a `Doa` frame's quality is multiplied by `quality_scale` (at most 1,
+/// [`working_pairs_scale`]).
 fn input_of(
     array_id: u16,
     sample_index: u64,
     body: &Body,
     t: f64,
-    pairs: Option<usize>,
+    quality_scale: f64,
 ) -> Option<Input> {
     match body {
         Body::Doa(d) => Some(Input::Bearing(Bearing {
@@ -591,7 +606,7 @@ fn input_of(
             azimuth_rad: f64::from(d.azimuth_rad()),
             zenith_rad: f64::from(d.zenith_rad()),
             residual: f64::from(d.residual_samples()),
-            quality: quality_of_used_pairs(f64::from(d.quality()), d.pairs_used, pairs),
+            quality: (f64::from(d.quality()) * quality_scale).min(1.0),
         })),
         Body::Peaks(p) => Some(Input::Spectrum(Spectrum {
             t,
@@ -647,16 +662,17 @@ mod tests {
         intake.push(frame, &mut |r| out.push(r)).unwrap();
     }
 
-    /// A dead microphone of a 6-mic array leaves 10 of its 15 pairs with a peak: the frames'
-    /// quality becomes the mean over those 10 (0.4 · 15/10 = 0.6), the array's count taken from
-    /// its `Hello`; every pair used, no count (0) or no known array: as the chip sent it.
+    /// A dead microphone of a 6-mic array leaves 10 of its 15 pairs with a peak in every frame:
+    /// the frames' quality becomes the mean over those 10 (0.4 · 15/10 = 0.6), the array's
+    /// count taken from its `Hello`. A frame where one more pair lost its peak (9) keeps that
+    /// loss against it (the array still has 10 working pairs); once a frame of all 15 pairs
+    /// came, nothing is scaled. No count (0) or no known array: as the chip sent it.
     #[test]
-    fn a_doa_frames_quality_is_over_the_pairs_that_carried_weight() {
-        assert!((quality_of_used_pairs(0.4, 10, Some(15)) - 0.6).abs() < 1e-12);
-        assert_eq!(quality_of_used_pairs(0.4, 15, Some(15)), 0.4);
-        assert_eq!(quality_of_used_pairs(0.4, 0, Some(15)), 0.4);
-        assert_eq!(quality_of_used_pairs(0.4, 10, None), 0.4);
-        assert_eq!(quality_of_used_pairs(0.9, 1, Some(15)), 1.0);
+    fn a_doa_frames_quality_is_over_the_arrays_working_pairs() {
+        assert!((working_pairs_scale(Some(15), 10) - 1.5).abs() < 1e-12);
+        assert_eq!(working_pairs_scale(Some(15), 15), 1.0);
+        assert_eq!(working_pairs_scale(Some(15), 0), 1.0);
+        assert_eq!(working_pairs_scale(None, 10), 1.0);
         let site = Site {
             arrays: vec![ArrayPose::new(3, [0.0; 3], 0.0, 0.0, 0.0)],
             room: None,
@@ -673,7 +689,7 @@ mod tests {
             .collect();
         let hello = Hello::new([0, 1, 0], 16_000, 1024, &six);
         collect(&mut intake, &Frame { header: header(0), body: Body::Hello(hello) }, &mut out);
-        for (k, used) in [10u8, 10, 10, 15].into_iter().enumerate() {
+        for (k, used) in [10u8, 10, 9, 10, 15, 10].into_iter().enumerate() {
             let doa = Doa { span_samples: 1600, pairs_used: used, ..Doa::new(0.5, 1.0, 0.25, 0.4) };
             let frame = Frame { header: header(16_000 + 1600 * k as u64), body: Body::Doa(doa) };
             collect(&mut intake, &frame, &mut out);
@@ -686,11 +702,32 @@ mod tests {
                 _ => None,
             })
             .collect();
-        assert_eq!(q.len(), 4, "{out:?}");
         let sent = f64::from(Doa::new(0.5, 1.0, 0.25, 0.4).quality());
-        for (got, want) in q.iter().zip([1.5 * sent, 1.5 * sent, 1.5 * sent, sent]) {
+        let want = [1.5 * sent, 1.5 * sent, 1.5 * sent, 1.5 * sent, sent, sent];
+        assert_eq!(q.len(), want.len(), "{out:?}");
+        for (got, want) in q.iter().zip(want) {
             assert!((got - want).abs() < 1e-12, "{q:?}");
         }
+        // No Hello: the site file's microphones count.
+        let mut pose = ArrayPose::new(3, [0.0; 3], 0.0, 0.0, 0.0);
+        pose.mic_positions_m = six.iter().map(|p| [f64::from(p[0]), f64::from(p[1])]).collect();
+        let site = Site { arrays: vec![pose], room: None, sample_rate_hz: None };
+        let mut intake = Intake::new(site, IntakeConfig::default());
+        let mut out = Vec::new();
+        for k in 0..3u64 {
+            let doa = Doa { span_samples: 1600, pairs_used: 10, ..Doa::new(0.5, 1.0, 0.25, 0.4) };
+            collect(
+                &mut intake,
+                &Frame { header: header(1600 * k), body: Body::Doa(doa) },
+                &mut out,
+            );
+        }
+        intake.finish(&mut |r| out.push(r));
+        let scaled = out.iter().all(|r| match r {
+            Released::Input(Input::Bearing(b)) => (b.quality - 1.5 * sent).abs() < 1e-12,
+            _ => true,
+        });
+        assert!(scaled && out.iter().any(|r| matches!(r, Released::Input(_))), "{out:?}");
     }
 
     #[test]
@@ -744,19 +781,19 @@ mod tests {
     #[test]
     fn a_frame_without_rotor_signature_carries_no_groups() {
         let p = rotor_peaks();
-        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(p.clone()), 0.0, None) else {
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(p.clone()), 0.0, 1.0) else {
             panic!()
         };
         assert_eq!(s.peaks.len(), 1);
         let none = Peaks { detection: aim_wire::Detection::NoRotor, ..p.clone() };
-        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(none), 0.0, None) else {
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(none), 0.0, 1.0) else {
             panic!()
         };
         assert!(s.peaks.is_empty(), "no rotor signature carries no groups");
         // An older frame (no decision) with a BPF still counts as a rotor.
         let older =
             Peaks { detection: aim_wire::Detection::Unstated, quality: heapless::Vec::new(), ..p };
-        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(older), 0.0, None) else {
+        let Some(Input::Spectrum(s)) = input_of(1, 0, &Body::Peaks(older), 0.0, 1.0) else {
             panic!()
         };
         assert_eq!(s.peaks.len(), 1);
