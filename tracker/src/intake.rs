@@ -40,6 +40,7 @@ use aim_wire::{Body, Frame, Hello};
 
 use crate::observation::{BeaconHeard, Bearing, BpfPeak, Input, SnippetHeard, Spectrum};
 use crate::site::{ArrayPose, Site};
+use crate::status::{pair_count, RecentPairs};
 
 /// Sample rate assumed before any `Hello` when the site file gives none, Hz.
 pub const DEFAULT_SAMPLE_RATE_HZ: u32 = 48_000;
@@ -222,8 +223,8 @@ struct ArrayState {
     boot_count: Option<u32>,
     /// Microphones of the array by its latest `Hello` (before one: the site file's, if given).
     mics: Option<usize>,
-    /// `pairs_used` of the array's last [`WORKING_PAIRS_WINDOW`] `Doa` frames, newest last.
-    recent_pairs_used: std::collections::VecDeque<u8>,
+    /// `pairs_used` of the array's newest `Doa` frames.
+    recent_pairs: RecentPairs,
     /// What a `Hello` that announced a reboot changed, until the next frame tells whether the
     /// board really restarted.
     before_reboot: Option<BeforeReboot>,
@@ -430,15 +431,11 @@ impl Intake {
             // middle.
             let mut quality_scale = 1.0;
             if let Body::Doa(d) = &f.body {
-                let recent = &mut state.recent_pairs_used;
-                if recent.len() == WORKING_PAIRS_WINDOW {
-                    recent.pop_front();
-                }
-                recent.push_back(d.pairs_used);
+                state.recent_pairs.push(d.pairs_used);
                 let site_mics = pose.mic_positions_m.len();
                 let mics = state.mics.or((site_mics >= 2).then_some(site_mics));
-                let working = recent.iter().copied().max().unwrap_or(0);
-                quality_scale = working_pairs_scale(mics.map(|n| n * (n - 1) / 2), working);
+                let working = state.recent_pairs.max().unwrap_or(0);
+                quality_scale = working_pairs_scale(mics.map(pair_count), working);
             }
             if let Some(input) =
                 input_of(id, f.header.sample_index, &f.body, time(s + 0.5 * span), quality_scale)
@@ -562,14 +559,11 @@ fn frame_span(frame: &Frame) -> u32 {
     }
 }
 
-/// `Doa` frames whose largest `pairs_used` is taken as the array's working pairs (5.5 s of
-/// frames; the microphone-health flag of [`crate::status`] looks at as many).
-pub const WORKING_PAIRS_WINDOW: usize = 32;
-
 /// The factor that turns a `Doa` frame's quality (the chip's mean over all `pairs` of the
 /// array, times the share the robust fit kept) into the mean over the array's *working* pairs:
 /// `pairs / working`, `working` the most pairs that carried weight in any of its last
-/// [`WORKING_PAIRS_WINDOW`] fits. A dead microphone leaves its n − 1 pairs without a peak in
+/// [`crate::status::MIC_HEALTH_WINDOW`] fits ([`RecentPairs`], which the microphone-health
+/// flag reads too). A dead microphone leaves its n − 1 pairs without a peak in
 /// every frame, which would lower every frame's quality by that share (a third on a 6-mic
 /// array) and, below the LoS test's minimum, call every bearing of a working array out of line
 /// of sight. A pair that lost its peak in one frame (noise, an obstruction) still counts

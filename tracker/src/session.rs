@@ -359,14 +359,12 @@ impl Session {
             keep(history, &r);
             feed(tracker, span, r, &mut fixes)
         })?;
-        note_time_base(frame.header.array_id, &before, self.intake.stats(), self.intake.config());
-        if self.intake.stats().aligned_to_link > before.aligned_to_link {
-            let shift = self.intake.shift_s(frame.header.array_id.into()).unwrap_or(f64::NAN);
-            eprintln!(
-                "note: {}",
-                placed_on_link_time(frame.header.array_id, shift, self.tracker.clock().is_some())
-            );
-        }
+        note_time_base(
+            frame.header.array_id,
+            &before,
+            &self.intake,
+            self.tracker.clock().is_some(),
+        );
         if self.tracker.takeovers() != takeovers {
             eprintln!(
                 "note: array {} took over the track from array {tracked}",
@@ -499,9 +497,15 @@ impl Session {
     }
 }
 
-/// Says on stderr when a frame moved an array's time base (a reboot, a silence the stream
-/// jumped over, a reboot announced and then withdrawn): the fixes' times jump there.
-fn note_time_base(array: u8, before: &IntakeStats, after: &IntakeStats, config: &IntakeConfig) {
+/// Says on stderr when a frame moved an array's time base (a board placed on the link's time,
+/// a reboot, a silence the stream jumped over, a reboot announced and then withdrawn): the
+/// fixes' times jump there. `beacon`: the site has a beacon ([`placed_on_link_time`]).
+fn note_time_base(array: u8, before: &IntakeStats, intake: &Intake, beacon: bool) {
+    let (after, config) = (intake.stats(), intake.config());
+    if after.aligned_to_link > before.aligned_to_link {
+        let shift = intake.shift_s(array.into()).unwrap_or(f64::NAN);
+        eprintln!("note: {}", placed_on_link_time(array, shift, beacon));
+    }
     if after.new_epochs > before.new_epochs {
         eprintln!(
             "note: array {array} restarted (its sample count went back); its time base starts \

@@ -114,13 +114,44 @@ impl BoardCounters {
     }
 }
 
+/// Microphone pairs of an array of `mics` microphones: n(n − 1)/2.
+pub fn pair_count(mics: usize) -> usize {
+    mics * mics.saturating_sub(1) / 2
+}
+
+/// `pairs_used` of an array's newest direction fits (`Doa` frames), oldest first, at most
+/// [`MIC_HEALTH_WINDOW`]: the microphone-health flag reads them, and the intake takes their
+/// largest as the array's working pairs.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RecentPairs(std::collections::VecDeque<u8>);
+
+impl RecentPairs {
+    /// Adds the newest fit's `pairs_used`, forgetting the oldest beyond the window.
+    pub fn push(&mut self, pairs_used: u8) {
+        if self.0.len() == MIC_HEALTH_WINDOW {
+            self.0.pop_front();
+        }
+        self.0.push_back(pairs_used);
+    }
+
+    /// Most pairs any of the fits used (None before any fit).
+    pub fn max(&self) -> Option<u8> {
+        self.0.iter().copied().max()
+    }
+
+    /// Whether the window holds [`MIC_HEALTH_WINDOW`] fits.
+    pub fn is_full(&self) -> bool {
+        self.0.len() == MIC_HEALTH_WINDOW
+    }
+}
+
 /// The microphone-health evidence of one array (see the module docs).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct MicHealth {
     /// Microphones of the array (from the site file).
     pub mics: usize,
-    /// `pairs_used` of the newest direction fits, oldest first (at most [`MIC_HEALTH_WINDOW`]).
-    recent_pairs: std::collections::VecDeque<u8>,
+    /// `pairs_used` of the newest direction fits.
+    recent_pairs: RecentPairs,
     /// Per microphone (slot order): `Health` intervals in a row it was silent in, and its
     /// newest DC level, dBFS.
     silent: Vec<(u32, i16)>,
@@ -129,14 +160,11 @@ pub struct MicHealth {
 impl MicHealth {
     /// Pairs of the array.
     pub fn pairs(&self) -> usize {
-        self.mics * self.mics.saturating_sub(1) / 2
+        pair_count(self.mics)
     }
 
     fn push(&mut self, pairs_used: u8) {
-        if self.recent_pairs.len() == MIC_HEALTH_WINDOW {
-            self.recent_pairs.pop_front();
-        }
-        self.recent_pairs.push_back(pairs_used);
+        self.recent_pairs.push(pairs_used);
     }
 
     fn push_levels(&mut self, levels: &MicLevels) {
@@ -171,7 +199,7 @@ impl MicHealth {
 
     /// Most pairs any of the recent fits used (None before any fit).
     pub fn recent_max_pairs(&self) -> Option<u8> {
-        self.recent_pairs.iter().copied().max()
+        self.recent_pairs.max()
     }
 
     /// Whether a microphone looks dead or stuck: a full window of fits, none of which used
@@ -179,7 +207,7 @@ impl MicHealth {
     pub fn suspect(&self) -> bool {
         let n = self.mics;
         n >= 3
-            && self.recent_pairs.len() == MIC_HEALTH_WINDOW
+            && self.recent_pairs.is_full()
             && self.recent_max_pairs().is_some_and(|m| usize::from(m) <= self.pairs() - (n - 1))
     }
 

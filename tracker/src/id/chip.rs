@@ -400,13 +400,16 @@ impl Live {
             self.history.pop_front();
         }
         self.history.push_back(self.model.predict(&features(&window)));
-        // The mean over the newest window and up to `k − 1` disjoint ones before it.
+        // The newest window and up to `k − 1` disjoint ones before it, and their mean.
         let n = self.history.len();
-        let mean_of = |k: usize| {
-            let used: Vec<&Vec<f32>> = (0..k)
+        let disjoint = |k: usize| -> Vec<&Vec<f32>> {
+            (0..k)
                 .filter_map(|i| n.checked_sub(1 + i * WINDOW_FRAMES))
                 .map(|i| &self.history[i])
-                .collect();
+                .collect()
+        };
+        let mean_of = |k: usize| {
+            let used = disjoint(k);
             let mut p = vec![0.0f32; self.model.classes.len()];
             for w in &used {
                 p.iter_mut().zip(w.iter()).for_each(|(a, b)| *a += b / used.len() as f32);
@@ -416,10 +419,8 @@ impl Live {
         let (mut detection, windows) = mean_of(self.decision_windows);
         let none = self.model.none_index();
         if let Some(none) = none {
-            let of_none: Vec<f32> = (0..self.decision_windows)
-                .filter_map(|i| n.checked_sub(1 + i * WINDOW_FRAMES))
-                .map(|i| self.history[i][none])
-                .collect();
+            let of_none: Vec<f32> =
+                disjoint(self.decision_windows).iter().map(|w| w[none]).collect();
             pool_none(&mut detection, none, pooled_probability(&of_none));
         }
         let detected = none != Some(self.model.decide(&detection));
