@@ -22,7 +22,13 @@
 //!   nine numbers as [`crate::features::HarmonicFeatures`]: `log2(f0 / 250 Hz)`, the comb's
 //!   salience (weighted mean line level, dB over the floor), the mean levels halfway and a
 //!   third of the way between harmonics (2- and 3-blade shaft lines), and harmonics 2..=6 in
-//!   dB relative to the first (magnitudes).
+//!   dB relative to the first (magnitudes);
+//! - **second comb**: the same nine numbers for the strongest comb whose fundamental is not
+//!   the first source's: outside the rotor cluster (±8 %) of ¼, ⅓, ½, 1, 2 and 3 times the
+//!   first fundamental and off the first comb's harmonics and shaft lines (its own candidates:
+//!   the strongest such local maxima). Beside a louder fan or pump the first comb
+//!   is that source's, and the drone's is this one (its blade-passing comb, or its shaft comb
+//!   at a half or a third of it when that comb's sum also takes in lines of the other source).
 //!
 //! State-free: the features of one analysis depend on its spectrum only (not on the comb's
 //! continuity), so a clip and a live stream give the same numbers for the same window.
@@ -62,8 +68,14 @@ pub struct IdFeatures {
     pub log_mel_db: [f32; MEL_BANDS],
     /// MFCC, orthonormal DCT-II of `log_mel_db`, dB.
     pub mfcc_db: [f32; MFCC_COUNT],
-    /// BPF comb features of the window.
+    /// BPF comb features of the window: the comb with the largest harmonic sum.
     pub harmonic: HarmonicFeatures,
+    /// The same features of the strongest comb whose fundamental is not the first source's (not
+    /// in the rotor cluster of its fundamental, its octaves, a third or quarter of it, nor on
+    /// its harmonics or shaft lines): a second tonal source beside the drone, or the drone
+    /// beside a louder one; all 0 when no candidate is left. (In noise it is the best comb of
+    /// noise maxima, with a low salience.)
+    pub second: HarmonicFeatures,
 }
 
 /// Precomputed tables: mel band edges (bins) and the DCT matrix. `const`-constructible empty,
@@ -147,7 +159,7 @@ impl IdExtractor {
         for (c, row) in out.mfcc_db.iter_mut().zip(&self.dct) {
             *c = row.iter().zip(&out.log_mel_db).map(|(a, b)| a * b).sum();
         }
-        out.harmonic = harmonic(mags, white, config);
+        (out.harmonic, out.second) = harmonic(mags, white, config);
         out
     }
 }
@@ -180,14 +192,42 @@ fn white_db(w: f32) -> f32 {
     }
 }
 
-fn harmonic(mags: &[f32], white: &[f32], config: &Config) -> HarmonicFeatures {
-    // The strongest local maxima of the whitened spectrum in the BPF search range.
-    let lo = ((config.bpf_min_hz / BIN_HZ) as usize).max(2);
-    let hi = ((config.bpf_max_hz / BIN_HZ) as usize).min(white.len() - 2);
+/// Whether fundamental bin `b` belongs to the source of fundamental bin `b0`: within the rotor
+/// cluster (±[`CLUSTER`] of it, one bin more) of `r · b0` for `r` in [`CLUSTER_RATIOS`] (the
+/// other rotors of the same drone, their octaves and a shaft comb's fundamental), or within
+/// ±(1 + 0.3 % of `b`) bins of a multiple of `b0 / q`, q = 1..=3 (its harmonics and its 2- and
+/// 3-blade shaft lines).
+#[inline]
+fn related(b: f32, b0: f32) -> bool {
+    let in_cluster = CLUSTER_RATIOS.iter().any(|&r| (b - r * b0).abs() <= 1.0 + CLUSTER * r * b0);
+    let tol = 1.0 + 0.003 * b;
+    in_cluster
+        || (1..=3).any(|q| {
+            let step = b0 / q as f32;
+            let n = libm::roundf(b / step);
+            n >= 1.0 && (b - n * step).abs() <= tol
+        })
+}
+
+/// Half-width of a drone's rotor cluster, fraction of its frequency (the rotors of one
+/// airframe turn within a few per cent of each other).
+const CLUSTER: f32 = 0.08;
+/// Multiples of the first comb's fundamental around which [`related`] takes the whole rotor
+/// cluster as the first source's.
+const CLUSTER_RATIOS: [f32; 6] = [0.25, 1.0 / 3.0, 0.5, 1.0, 2.0, 3.0];
+
+/// The [`CANDIDATES`] strongest local maxima of the whitened spectrum between `lo` and `hi`
+/// (bins) that `keep` accepts, strongest first (unused entries `(0, 0.0)`).
+fn candidates(
+    white: &[f32],
+    lo: usize,
+    hi: usize,
+    keep: impl Fn(usize) -> bool,
+) -> [(usize, f32); CANDIDATES] {
     let mut cand = [(0usize, 0.0f32); CANDIDATES];
     for k in lo..=hi {
         let v = white[k];
-        if v > cand[CANDIDATES - 1].1 && v >= white[k - 1] && v > white[k + 1] {
+        if v > cand[CANDIDATES - 1].1 && v >= white[k - 1] && v > white[k + 1] && keep(k) {
             let mut i = CANDIDATES - 1;
             while i > 0 && cand[i - 1].1 < v {
                 cand[i] = cand[i - 1];
@@ -196,9 +236,13 @@ fn harmonic(mags: &[f32], white: &[f32], config: &Config) -> HarmonicFeatures {
             cand[i] = (k, v);
         }
     }
-    // Harmonic sum per candidate, on the refined fundamental.
+    cand
+}
+
+/// The candidate with the largest harmonic sum, on its refined fundamental (bin), or 0.0.
+fn strongest_comb(mags: &[f32], white: &[f32], cand: &[(usize, f32)]) -> f32 {
     let mut best = (0.0f32, f32::MIN);
-    for &(k, v) in &cand {
+    for &(k, v) in cand {
         if v <= 0.0 {
             break;
         }
@@ -214,7 +258,23 @@ fn harmonic(mags: &[f32], white: &[f32], config: &Config) -> HarmonicFeatures {
             best = (b, sum);
         }
     }
-    let b0 = best.0;
+    best.0
+}
+
+/// The strongest comb and the strongest comb not [`related`] to it.
+fn harmonic(mags: &[f32], white: &[f32], config: &Config) -> (HarmonicFeatures, HarmonicFeatures) {
+    let lo = ((config.bpf_min_hz / BIN_HZ) as usize).max(2);
+    let hi = ((config.bpf_max_hz / BIN_HZ) as usize).min(white.len() - 2);
+    let b0 = strongest_comb(mags, white, &candidates(white, lo, hi, |_| true));
+    if b0 <= 0.0 {
+        return Default::default();
+    }
+    let b1 = strongest_comb(mags, white, &candidates(white, lo, hi, |k| !related(k as f32, b0)));
+    (comb_features(mags, white, b0), comb_features(mags, white, b1))
+}
+
+/// The nine numbers of the comb of fundamental bin `b0` (all 0 for `b0` ≤ 0).
+fn comb_features(mags: &[f32], white: &[f32], b0: f32) -> HarmonicFeatures {
     if b0 <= 0.0 {
         return HarmonicFeatures::default();
     }
@@ -270,6 +330,11 @@ mod tests {
     /// full scale), shaft lines at `f0 / blades` multiples 20 dB below the first harmonic, and
     /// white noise (RMS 0.001).
     fn features_of(f0: f32, amps: &[f32], blades: usize) -> IdFeatures {
+        features_of_two(f0, amps, blades, 0.0, &[])
+    }
+
+    /// As [`features_of`], plus a second comb of fundamental `f1` (no shaft lines).
+    fn features_of_two(f0: f32, amps: &[f32], blades: usize, f1: f32, amps1: &[f32]) -> IdFeatures {
         let mut x = [0.0f32; ANALYSIS_LEN];
         let mut lcg = 99u32;
         let fs = DECIMATED_RATE_HZ as f32;
@@ -279,6 +344,9 @@ mod tests {
             let t = n as f32 / fs;
             for (h, a) in amps.iter().enumerate() {
                 *v += a * libm::sinf(2.0 * PI * f0 * (h + 1) as f32 * t + h as f32);
+            }
+            for (h, a) in amps1.iter().enumerate() {
+                *v += a * libm::sinf(2.0 * PI * f1 * (h + 1) as f32 * t + 0.5 * h as f32);
             }
             for m in 1..blades * amps.len() {
                 if m % blades != 0 {
@@ -312,6 +380,46 @@ mod tests {
                     assert!((e - want).abs() < 1.5, "f0 {f0}: env {i} {e} want {want}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_second_comb_is_the_other_source_not_the_first_ones_lines() {
+        // A loud 230 Hz pump comb and a drone 12 dB below it at 328 Hz (2-blade shaft lines):
+        // the pump is the first comb and the second is the drone's: its blade-passing comb or
+        // its shaft comb (164 Hz, which also sums the pump's line at 1150 Hz), not the pump's.
+        let pump = [0.2, 0.1, 0.05, 0.025, 0.0125, 0.006];
+        let drone = [0.05, 0.025, 0.0125, 0.006];
+        let f = features_of_two(328.0, &drone, 2, 230.0, &pump);
+        let hz = |h: &HarmonicFeatures| 250.0 * libm::powf(2.0, h.log2_f0);
+        assert!((hz(&f.harmonic) - 230.0).abs() < 0.5, "{:?}", f.harmonic);
+        let second = hz(&f.second);
+        let on_drone = [328.0, 164.0].iter().any(|d| (second - d).abs() < 0.5);
+        assert!(on_drone && f.second.salience_db > 15.0, "{second} Hz: {:?}", f.second);
+        assert!(!related(second / BIN_HZ, 230.0 / BIN_HZ));
+        // Its strongest line is the drone's blade-passing line (harmonic 2 of a shaft comb).
+        if (second - 164.0).abs() < 0.5 {
+            assert!(f.second.envelope_db[0] > 10.0, "{:?}", f.second);
+        }
+        // The drone alone: its comb first, and the second is neither its shaft comb (164 Hz),
+        // nor its octave, nor another line of its own.
+        let f = features_of(328.0, &drone, 2);
+        assert!((hz(&f.harmonic) - 328.0).abs() < 0.5, "{:?}", f.harmonic);
+        assert!(f.second.salience_db < f.harmonic.salience_db, "{f:?}");
+        let b1 = hz(&f.second) / BIN_HZ;
+        assert!(!related(b1, 328.0 / BIN_HZ), "second comb at {} Hz", hz(&f.second));
+    }
+
+    #[test]
+    fn related_combs_are_the_cluster_octaves_harmonics_and_shaft_lines() {
+        let b0 = 300.0 / BIN_HZ;
+        for hz in
+            [300.0, 318.0, 282.0, 150.0, 600.0, 640.0, 900.0, 100.0, 75.0, 1500.0, 450.0, 700.0]
+        {
+            assert!(related(hz / BIN_HZ, b0), "{hz} Hz");
+        }
+        for hz in [220.0, 250.0, 370.0, 520.0, 430.0] {
+            assert!(!related(hz / BIN_HZ, b0), "{hz} Hz");
         }
     }
 

@@ -81,6 +81,9 @@ pub struct Identifier {
     frames: u64,
     /// Sample index of the newest one: an older one means the array restarted its clock.
     last_index: u64,
+    /// `Mfcc` frames of the tracked array without the second comb (firmware older than the
+    /// model's features): not classified.
+    frames_without_second_comb: u64,
 }
 
 /// Fewest verdicts (one per `Mfcc` frame, 0.256 s) before the profile follows a class: 10 s.
@@ -128,6 +131,7 @@ impl Identifier {
             verdicts: 0,
             frames: 0,
             last_index: 0,
+            frames_without_second_comb: 0,
         })
     }
 
@@ -199,6 +203,18 @@ impl Identifier {
         sample_index: u64,
         frame: &aim_wire::Mfcc,
     ) -> Option<crate::profile::Profile> {
+        if frame.second_harmonic.is_none() {
+            // Older firmware: the model's second-comb features would read as "none found",
+            // which it never saw on a drone. No verdict rather than a wrong one.
+            if self.frames_without_second_comb == 0 {
+                eprintln!(
+                    "note: the tracked array's Mfcc frames carry no second comb (firmware older \
+                     than the drone classifier's features): no drone verdict until it is updated"
+                );
+            }
+            self.frames_without_second_comb += 1;
+            return None;
+        }
         if sample_index < self.last_index {
             // The array rebooted: its new frames do not continue the old window (the drone,
             // and so the evidence, stays).

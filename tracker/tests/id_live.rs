@@ -329,3 +329,33 @@ fn aim_replay_names_the_drone_in_every_fix_once_a_window_is_full() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn frames_of_firmware_without_the_second_comb_get_no_verdict_and_a_note() {
+    // The bundled model reads the second comb; frames of older firmware carry none, and the
+    // verdict on them would rest on features it never saw on a drone. The fixes go on without
+    // a `drone` field, and stderr says why once.
+    let dir = std::env::temp_dir().join(format!("aim-id-old-fw-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let site = dir.join("site.toml");
+    std::fs::write(&site, common::SITE_TOML).unwrap();
+    let mut frames = link_with_mfcc(&clip("dji-mini-2", 7_100_001, 48_000, 6.0));
+    let mut old = 0;
+    for f in &mut frames {
+        if let Body::Mfcc(m) = &mut f.body {
+            assert!(m.second_harmonic.is_some(), "this build's frames carry it");
+            m.second_harmonic = None;
+            old += 1;
+        }
+    }
+    assert!(old >= 18, "{old} Mfcc frames");
+    let rec = dir.join("old.aimraw");
+    std::fs::write(&rec, common::bytes(&frames)).unwrap();
+    let out = common::aim_replay_output(&rec, &site, &[]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.lines().count() > 30 && !text.contains("drone"), "{text}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.matches("carry no second comb").count(), 1, "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

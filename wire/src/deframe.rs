@@ -159,7 +159,7 @@ fn decode_body(kind: Kind, payload: &[u8]) -> Result<Body, DecodeError> {
         Kind::Doa => Body::Doa(postcard::take_from_bytes(payload).map_err(err)?.0),
         Kind::Peaks => Body::Peaks(crate::Peaks::from_payload(payload).map_err(err)?),
         Kind::Health => Body::Health(crate::Health::from_payload(payload).map_err(err)?),
-        Kind::Mfcc => Body::Mfcc(postcard::take_from_bytes(payload).map_err(err)?.0),
+        Kind::Mfcc => Body::Mfcc(crate::Mfcc::from_payload(payload).map_err(err)?),
         Kind::Beacon => Body::Beacon(postcard::take_from_bytes(payload).map_err(err)?.0),
         Kind::Snippet => Body::Snippet(postcard::take_from_bytes(payload).map_err(err)?.0),
     })

@@ -132,7 +132,10 @@ impl Kind {
             // + microphone count 1 + 8 x (rms, dc) i16 3 each
             Kind::Health => 5 + 5 + 3 + 1 + 5 * 3 + 1 + 9 * 5 + 1 + MAX_MICS * 2 * 3,
             // span u32 5 + (24 log-mel + 13 MFCC + 9 harmonic) x i16 3
-            Kind::Mfcc => 5 + (MFCC_MEL_BANDS + MFCC_COEFFS + MFCC_HARMONIC) * 3,
+            // + second comb (appended) Option tag 1 + 9 x i16 3
+            Kind::Mfcc => {
+                5 + (MFCC_MEL_BANDS + MFCC_COEFFS + MFCC_HARMONIC) * 3 + 1 + MFCC_HARMONIC * 3
+            }
             // fraction u16 3 + quality 1 + level i16 3
             Kind::Beacon => 3 + 1 + 3,
             // decimation 1 + exponent 1 + length varint 2 + samples 1 each
@@ -902,9 +905,41 @@ pub struct Mfcc {
     /// Comb features: `log2(f0 / 250 Hz)` in units of 0.001 octave, then salience, half-way
     /// level, third-way level and harmonics 2..=6 relative to the first, units of 0.01 dB.
     pub harmonic: [i16; MFCC_HARMONIC],
+    /// The same comb features for the strongest comb that is not the first source's (aim-dsp
+    /// `IdFeatures::second`: outside the rotor cluster of the first fundamental's octaves and
+    /// off its harmonics and shaft lines), same units; all 0 when no candidate was left.
+    /// Appended: `None` in frames of older firmware, which did not compute it.
+    pub second_harmonic: Option<[i16; MFCC_HARMONIC]>,
+}
+
+/// The fields of [`Mfcc`] before the appended ones: what older frames carry.
+#[derive(Deserialize)]
+struct MfccBase {
+    span_samples: u32,
+    log_mel_cdb: [i16; MFCC_MEL_BANDS],
+    mfcc_ddb: [i16; MFCC_COEFFS],
+    harmonic: [i16; MFCC_HARMONIC],
+}
+
+/// The appended fields of [`Mfcc`].
+#[derive(Deserialize)]
+struct MfccAppended {
+    second_harmonic: Option<[i16; MFCC_HARMONIC]>,
 }
 
 impl Mfcc {
+    /// Decodes a payload; the appended second comb is `None` when absent (older firmware).
+    pub(crate) fn from_payload(payload: &[u8]) -> postcard::Result<Mfcc> {
+        let (base, appended, _) = base_and_appended::<MfccBase, MfccAppended>(payload)?;
+        Ok(Mfcc {
+            span_samples: base.span_samples,
+            log_mel_cdb: base.log_mel_cdb,
+            mfcc_ddb: base.mfcc_ddb,
+            harmonic: base.harmonic,
+            second_harmonic: appended.and_then(|a| a.second_harmonic),
+        })
+    }
+
     /// Log-mel band `b`, dB.
     pub fn log_mel_db(&self, b: usize) -> f32 {
         f32::from(self.log_mel_cdb[b]) * 0.01
@@ -917,12 +952,23 @@ impl Mfcc {
 
     /// The comb features in physical units: `log2(f0 / 250 Hz)` (octaves), then dB.
     pub fn harmonic_values(&self) -> [f32; MFCC_HARMONIC] {
-        let mut v = [0.0f32; MFCC_HARMONIC];
-        for (i, (o, &q)) in v.iter_mut().zip(&self.harmonic).enumerate() {
-            *o = f32::from(q) * if i == 0 { 0.001 } else { 0.01 };
-        }
-        v
+        comb_values(&self.harmonic)
     }
+
+    /// The second comb's features in physical units, as [`Mfcc::harmonic_values`]; `None`
+    /// from older firmware.
+    pub fn second_harmonic_values(&self) -> Option<[f32; MFCC_HARMONIC]> {
+        self.second_harmonic.as_ref().map(comb_values)
+    }
+}
+
+/// Comb features from their wire units: `log2(f0 / 250 Hz)` in 0.001 octave, then 0.01 dB.
+fn comb_values(q: &[i16; MFCC_HARMONIC]) -> [f32; MFCC_HARMONIC] {
+    let mut v = [0.0f32; MFCC_HARMONIC];
+    for (i, (o, &q)) in v.iter_mut().zip(q).enumerate() {
+        *o = f32::from(q) * if i == 0 { 0.001 } else { 0.01 };
+    }
+    v
 }
 
 /// One arrival of the synchronisation beacon (aim-dsp `beacon`, sequence `aim-beacon-v1`), at

@@ -149,10 +149,18 @@ pub fn mfcc(f: &aim_dsp::IdFeatures) -> Mfcc {
     for (q, &v) in m.mfcc_ddb.iter_mut().zip(&f.mfcc_db) {
         *q = fixed::to_i16(v, 10.0);
     }
-    for (i, (q, &v)) in m.harmonic.iter_mut().zip(&f.harmonic.to_array()).enumerate() {
+    m.harmonic = comb(&f.harmonic);
+    m.second_harmonic = Some(comb(&f.second));
+    m
+}
+
+/// Comb features in their wire units (0.001 octave for the fundamental, then 0.01 dB).
+fn comb(h: &aim_dsp::features::HarmonicFeatures) -> [i16; MFCC_HARMONIC] {
+    let mut q = [0i16; MFCC_HARMONIC];
+    for (i, (q, &v)) in q.iter_mut().zip(&h.to_array()).enumerate() {
         *q = fixed::to_i16(v, if i == 0 { 1000.0 } else { 100.0 });
     }
-    m
+    q
 }
 
 /// The frame body and sample index of one pipeline output.

@@ -40,9 +40,9 @@
 //! | `Peak::amplitude_ddb` | i16 | 0.1 dB | ±3276.7 dB |
 //! | `Hello::mic_positions_decimm` | i16 | 0.1 mm | ±3.2767 m |
 //! | `Health::peak_ddbfs` | i16 | 0.1 dB | ±3276.7 dBFS |
-//! | `Mfcc::log_mel_cdb`, `Mfcc::harmonic[1..]` | i16 | 0.01 dB | ±327.67 dB |
+//! | `Mfcc::log_mel_cdb`, `Mfcc::harmonic[1..]`, `Mfcc::second_harmonic[1..]` | i16 | 0.01 dB | ±327.67 dB |
 //! | `Mfcc::mfcc_ddb` | i16 | 0.1 dB | ±3276.7 dB |
-//! | `Mfcc::harmonic[0]` (`log2(f0 / 250 Hz)`) | i16 | 0.001 octave | ±32.767 octaves |
+//! | `Mfcc::harmonic[0]`, `Mfcc::second_harmonic[0]` (`log2(f0 / 250 Hz)`) | i16 | 0.001 octave | ±32.767 octaves |
 //! | `Beacon::fraction` | u16 | 1/65536 sample | 0–1 sample |
 //! | `Beacon::quality` | u8 | 1/255 | 0–1 |
 //! | `Beacon::level_cdb` | i16 | 0.01 dB | ±327.67 dBFS |

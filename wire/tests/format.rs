@@ -46,7 +46,7 @@ fn max_encoded_size_per_kind() {
         (Kind::Doa, 36, 39),
         (Kind::Peaks, 73, 76),
         (Kind::Health, 144, 147),
-        (Kind::Mfcc, 163, 166),
+        (Kind::Mfcc, 191, 194),
         (Kind::Beacon, 27, 30),
         (Kind::Snippet, 280, 284),
     ];
@@ -473,6 +473,36 @@ fn bodies_report_their_kind() {
         );
         assert!(matches, "{kind:?}");
     }
+}
+
+#[test]
+fn mfcc_of_older_firmware_decode_with_no_second_comb() {
+    // An Mfcc payload that ends after its comb features (written before the second comb was
+    // appended) decodes with no second comb (rule 3), the rest as sent.
+    let frame = &sample_frames()[4];
+    let Body::Mfcc(m) = &frame.body else { panic!("sample frame 4 is an Mfcc") };
+    let second = m.second_harmonic.expect("the sample has a second comb");
+    let body = strip_crc(&raw(frame)).to_vec();
+    // Each of the nine i16 at most 3 bytes (zigzag varint): cut them off exactly.
+    let varint_len = |v: i16| match ((v << 1) ^ (v >> 15)) as u16 {
+        0..=127 => 1,
+        128..=16_383 => 2,
+        _ => 3,
+    };
+    let appended: usize = 1 + second.iter().map(|&v| varint_len(v)).sum::<usize>(); // tag, values
+    let old = &body[..body.len() - appended];
+    let (out, stats) = deframe_all(&reframe(old));
+    let Ok(Frame { body: Body::Mfcc(q), .. }) = &out[0] else { panic!("{out:?}") };
+    let expected = aim_wire::Mfcc { second_harmonic: None, ..*m };
+    assert_eq!((q, stats.malformed), (&expected, 0));
+    // The snapshot of that frame's bytes as older firmware sent them decodes the same way.
+    let golden = std::fs::read_to_string(format!("{GOLDEN_DIR}/mfcc-sample-base.hex")).unwrap();
+    let mut deframer: Deframer = Deframer::new();
+    let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+    assert!(
+        matches!(&decoded[..], [Ok(Frame { body: Body::Mfcc(g), .. })] if g == q),
+        "{decoded:?}"
+    );
 }
 
 #[test]

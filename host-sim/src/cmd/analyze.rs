@@ -317,18 +317,27 @@ impl Printer {
             Output::Mfcc(f) => {
                 let t = f.sample_index as f64 / self.fs;
                 let f0 = 250.0 * f64::from(f.harmonic.log2_f0).exp2();
+                // The second comb (none: salience 0).
+                let second = (f.second.salience_db > 0.0)
+                    .then(|| (250.0 * f64::from(f.second.log2_f0).exp2(), f.second.salience_db));
                 if self.jsonl {
                     serde_json::json!({
                         "kind": "mfcc", "t": t, "mfcc_db": f.mfcc_db.to_vec(),
                         "log_mel_db": f.log_mel_db.to_vec(), "comb_f0_hz": f0,
                         "comb_salience_db": f.harmonic.salience_db,
+                        "second_comb_f0_hz": second.map(|s| s.0),
+                        "second_comb_salience_db": second.map(|s| s.1),
                     })
                     .to_string()
                 } else {
-                    format!(
+                    let mut line = format!(
                         "{t:9.3} s  mfcc   c0 {:7.1} dB  c1 {:6.1} dB  comb f0 {f0:7.1} Hz  salience {:.1} dB",
                         f.mfcc_db[0], f.mfcc_db[1], f.harmonic.salience_db
-                    )
+                    );
+                    if let Some((f0, salience)) = second {
+                        line += &format!("  second {f0:7.1} Hz  {salience:.1} dB");
+                    }
+                    line
                 }
             }
             Output::Beacon(b) => {

@@ -13,9 +13,11 @@
 //! - comb features: median fundamental (octaves re 250 Hz), its standard deviation, mean
 //!   salience, half-, third-way levels and harmonic envelope (10);
 //! - the fundamental, half-, third-way levels and envelope averaged with weights
-//!   `max(0, salience − 3 dB)²` (8), the largest salience (1), the spectral flux (mean absolute
-//!   frame-to-frame change of the level-free log-mel, dB; 1) and the share of frames whose
-//!   fundamental is within 1/12 octave of the previous frame's (1).
+//!   `max(0, salience − 3 dB)²` (8), the largest salience (1) and the share of frames whose
+//!   fundamental is within 1/12 octave of the previous frame's (1);
+//! - the spectral flux (mean absolute frame-to-frame change of the level-free log-mel, dB; 1);
+//! - the same 20 comb numbers for the second comb (`Mfcc::second_harmonic`: the strongest
+//!   comb of another source, so a drone beside a louder fan or pump is still described).
 use super::clip::mean_sd;
 use aim_dsp::{Config, Geometry, Output, Pipeline};
 use aim_wire::{Mfcc, MFCC_COEFFS, MFCC_HARMONIC, MFCC_MEL_BANDS};
@@ -26,26 +28,57 @@ pub const WINDOW_FRAMES: usize = 6;
 /// Fewest frames a window may have.
 pub const MIN_FRAMES: usize = 2;
 /// Length of a window's feature vector.
-pub const FEATURES: usize = 2 * (MFCC_COEFFS - 1) + MFCC_MEL_BANDS + (MFCC_HARMONIC + 1) + 11;
+pub const FEATURES: usize =
+    2 * (MFCC_COEFFS - 1) + MFCC_MEL_BANDS + 2 * (MFCC_HARMONIC + 1 + MFCC_HARMONIC - 1 + 2) + 1;
 
 /// Names of the features, in vector order (prefixed `chip_`: a model records them, and one
 /// made for the 16 kHz clip features is not mistaken for one of these).
 pub fn names() -> Vec<String> {
     let mut v = super::clip::spectral_names("chip_", MFCC_COEFFS, MFCC_MEL_BANDS);
-    let h = super::clip::HARMONIC_NAMES;
-    v.push("chip_log2_f0_median".into());
-    v.push("chip_log2_f0_sd".into());
-    for n in &h[1..] {
-        v.push(format!("chip_{n}_mean"));
-    }
-    for n in h.iter().filter(|n| **n != "salience_db") {
-        v.push(format!("chip_weighted_{n}"));
-    }
-    v.push("chip_salience_max_db".into());
+    comb_names(&mut v, "chip_");
     v.push("chip_log_mel_flux_db".into());
-    v.push("chip_f0_continuity".into());
+    comb_names(&mut v, "chip_second_");
     debug_assert_eq!(v.len(), FEATURES);
     v
+}
+
+/// Names of [`comb_features`]' numbers, each prefixed `prefix`.
+fn comb_names(v: &mut Vec<String>, prefix: &str) {
+    let h = super::clip::HARMONIC_NAMES;
+    v.push(format!("{prefix}log2_f0_median"));
+    v.push(format!("{prefix}log2_f0_sd"));
+    for n in &h[1..] {
+        v.push(format!("{prefix}{n}_mean"));
+    }
+    for n in h.iter().filter(|n| **n != "salience_db") {
+        v.push(format!("{prefix}weighted_{n}"));
+    }
+    v.push(format!("{prefix}salience_max_db"));
+    v.push(format!("{prefix}f0_continuity"));
+}
+
+/// A comb's numbers over a window (`h`: per frame, `Mfcc::harmonic_values` or
+/// `Mfcc::second_harmonic_values`): median fundamental, its standard deviation, the mean of
+/// the other eight, the fundamental and those but the salience weighted by
+/// `max(0, salience − 3 dB)²`, the largest salience and the share of frames whose fundamental
+/// is within 1/12 octave of the previous frame's.
+fn comb_features(v: &mut Vec<f32>, h: &[[f32; MFCC_HARMONIC]]) {
+    let mut f0: Vec<f32> = h.iter().map(|a| a[0]).collect();
+    f0.sort_by(f32::total_cmp);
+    v.push(f0.get(f0.len() / 2).copied().unwrap_or(0.0));
+    v.push(mean_sd(h.iter().map(|a| a[0])).1);
+    for i in 1..MFCC_HARMONIC {
+        v.push(mean_sd(h.iter().map(move |a| a[i])).0);
+    }
+    let w: Vec<f32> = h.iter().map(|a| (a[1] - 3.0).max(0.0).powi(2) + 1e-6).collect();
+    let wsum: f32 = w.iter().sum();
+    for i in (0..MFCC_HARMONIC).filter(|&i| i != 1) {
+        v.push(h.iter().zip(&w).map(|(a, w)| a[i] * w).sum::<f32>() / wsum);
+    }
+    v.push(h.iter().map(|a| a[1]).fold(0.0, f32::max));
+    let pairs = h.len().saturating_sub(1).max(1) as f32;
+    let steady = h.windows(2).filter(|p| (p[0][0] - p[1][0]).abs() < 1.0 / 12.0).count();
+    v.push(steady as f32 / pairs);
 }
 
 /// The feature vector of a window of frames (oldest first; at least one).
@@ -65,19 +98,7 @@ pub fn features(frames: &[Mfcc]) -> Vec<f32> {
         v.push(mean_sd(rels.iter().map(move |r| r[b])).0);
     }
     let h: Vec<[f32; MFCC_HARMONIC]> = frames.iter().map(Mfcc::harmonic_values).collect();
-    let mut f0: Vec<f32> = h.iter().map(|a| a[0]).collect();
-    f0.sort_by(f32::total_cmp);
-    v.push(f0.get(f0.len() / 2).copied().unwrap_or(0.0));
-    v.push(mean_sd(h.iter().map(|a| a[0])).1);
-    for i in 1..MFCC_HARMONIC {
-        v.push(mean_sd(h.iter().map(move |a| a[i])).0);
-    }
-    let w: Vec<f32> = h.iter().map(|a| (a[1] - 3.0).max(0.0).powi(2) + 1e-6).collect();
-    let wsum: f32 = w.iter().sum();
-    for i in (0..MFCC_HARMONIC).filter(|&i| i != 1) {
-        v.push(h.iter().zip(&w).map(|(a, w)| a[i] * w).sum::<f32>() / wsum);
-    }
-    v.push(h.iter().map(|a| a[1]).fold(0.0, f32::max));
+    comb_features(&mut v, &h);
     let pairs = frames.len().saturating_sub(1).max(1) as f32;
     let flux: f32 = rels
         .windows(2)
@@ -85,8 +106,11 @@ pub fn features(frames: &[Mfcc]) -> Vec<f32> {
         .sum::<f32>()
         / (MFCC_MEL_BANDS as f32 * pairs);
     v.push(flux);
-    let steady = h.windows(2).filter(|p| (p[0][0] - p[1][0]).abs() < 1.0 / 12.0).count();
-    v.push(steady as f32 / pairs);
+    // Frames of firmware without the second comb read as none found (the live classifier
+    // does not classify them: `Live::push`).
+    let second: Vec<[f32; MFCC_HARMONIC]> =
+        frames.iter().map(|f| f.second_harmonic_values().unwrap_or_default()).collect();
+    comb_features(&mut v, &second);
     debug_assert_eq!(v.len(), FEATURES);
     v
 }
@@ -349,8 +373,9 @@ impl Live {
     pub fn new(model: super::model::Model) -> anyhow::Result<Self> {
         if model.features != names() {
             anyhow::bail!(
-                "the model was trained on other features than the chip's Mfcc frames (train it \
-                 with `aim id train --features chip`)"
+                "the model was not trained on this build's features of the chip's Mfcc frames \
+                 (train it with `aim id train --features chip`; a chip model made before the \
+                 frames carried a second comb must be trained again)"
             );
         }
         Ok(Self {

@@ -29,7 +29,7 @@ pub const NONE_CLASS: &str = "none";
 
 /// The bundled drone classifier: trained with `aim id train --features chip` on host-sim's
 /// simulated drones and negatives (`host-sim id-dataset`; seeds and command in BENCHMARKS.md,
-/// "Issue 16 on the chip"; the current one: "Session 18: 4.6 times the training clips").
+/// "Issue 16 on the chip"; the current one: "Session 24: a second comb in the `Mfcc` frame").
 pub fn default_model() -> model::Model {
     model::Model::from_json(
         include_str!("../../models/drone-id-chip.json"),

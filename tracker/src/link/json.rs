@@ -115,8 +115,7 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
             })
         }
         Body::Mfcc(p) => {
-            let h = p.harmonic_values();
-            json!({
+            let mut v = json!({
                 "span_samples": p.span_samples,
                 "log_mel_db": (0..aim_wire::MFCC_MEL_BANDS)
                     .map(|b| round(f64::from(p.log_mel_cdb[b]) / 100.0, 2))
@@ -124,15 +123,20 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                 "mfcc_db": (0..aim_wire::MFCC_COEFFS)
                     .map(|c| round(f64::from(p.mfcc_ddb[c]) / 10.0, 1))
                     .collect::<Vec<_>>(),
-                "comb_f0_hz": round(250.0 * f64::from(h[0]).exp2(), 2),
-                "comb_salience_db": round(f64::from(p.harmonic[1]) / 100.0, 2),
-                "comb_half_db": round(f64::from(p.harmonic[2]) / 100.0, 2),
-                "comb_third_db": round(f64::from(p.harmonic[3]) / 100.0, 2),
-                "comb_envelope_db": p.harmonic[4..]
-                    .iter()
-                    .map(|&v| round(f64::from(v) / 100.0, 2))
-                    .collect::<Vec<_>>(),
-            })
+            });
+            // The first comb's fields flat (`comb_f0_hz`, ...), as before the second existed.
+            if let Value::Object(first) = comb_json(&p.harmonic) {
+                for (k, x) in first {
+                    v[format!("comb_{k}")] = x;
+                }
+            }
+            // The strongest comb of another source: null when there is none (or the firmware
+            // sends none).
+            v["second_comb"] = match &p.second_harmonic {
+                Some(q) if *q != [0; aim_wire::MFCC_HARMONIC] => comb_json(q),
+                _ => Value::Null,
+            };
+            v
         }
         Body::Beacon(p) => json!({
             "arrival_samples": p.arrival_samples(h.sample_index),
@@ -193,6 +197,19 @@ pub fn stats(s: &LinkStats) -> Value {
         "seq_gaps": s.seq_gaps,
         "frames_missed": s.frames_missed,
         "seq_resets": s.seq_resets,
+    })
+}
+
+/// A comb's features from their wire units (`aim_wire::Mfcc::harmonic`): fundamental (Hz),
+/// salience, half- and third-way levels (dB) and harmonics 2..=6 relative to the first (dB).
+fn comb_json(q: &[i16; aim_wire::MFCC_HARMONIC]) -> Value {
+    let db = |v: i16| round(f64::from(v) / 100.0, 2);
+    json!({
+        "f0_hz": round(250.0 * (f64::from(q[0]) * 0.001).exp2(), 2),
+        "salience_db": db(q[1]),
+        "half_db": db(q[2]),
+        "third_db": db(q[3]),
+        "envelope_db": q[4..].iter().map(|&v| db(v)).collect::<Vec<_>>(),
     })
 }
 
@@ -261,6 +278,15 @@ mod tests {
         assert_eq!(v["comb_f0_hz"], json!(328.05));
         assert_eq!((&v["comb_salience_db"], &v["comb_third_db"]), (&json!(17.13), &json!(0.96)));
         assert_eq!(v["comb_envelope_db"], json!([-4.12, 0.0, 0.0, 0.0, -33.33]));
+        assert_eq!(v["second_comb"], Value::Null, "no second comb");
+        // 250 Hz · 2^−1.095 = 117.03 Hz.
+        m.second_harmonic = Some([-1_095, 1_204, 130, 88, -655, -1_020, -1_540, -1_811, -2_630]);
+        let v = frame(&Frame { header: Header::default(), body: Body::Mfcc(m) }, None);
+        assert_eq!(
+            v["second_comb"],
+            json!({"f0_hz": 117.03, "salience_db": 12.04, "half_db": 1.3, "third_db": 0.88,
+                   "envelope_db": [-6.55, -10.2, -15.4, -18.11, -26.3]})
+        );
     }
 
     #[test]

@@ -125,7 +125,8 @@ pub fn sample_snippet() -> aim_wire::Snippet {
 }
 
 /// An `Mfcc` payload as a hovering drone at 4 m gives (levels of a real run, rounded): a
-/// falling log-mel spectrum, its cepstrum, a 328 Hz comb with 2-blade shaft lines.
+/// falling log-mel spectrum, its cepstrum, a 328 Hz comb with 2-blade shaft lines, and a
+/// weaker 117 Hz comb beside it (a desk fan).
 pub fn sample_mfcc() -> aim_wire::Mfcc {
     let mut m = aim_wire::Mfcc { span_samples: 24_576, ..Default::default() };
     for (b, v) in m.log_mel_cdb.iter_mut().enumerate() {
@@ -133,6 +134,7 @@ pub fn sample_mfcc() -> aim_wire::Mfcc {
     }
     m.mfcc_ddb = [-3_560, 245, -31, 12, -8, 40, -3, 5, 0, -17, 2, 9, -1];
     m.harmonic = [392, 2_112, 845, 96, -412, -905, -1_288, -1_702, -2_203];
+    m.second_harmonic = Some([-1_095, 1_204, 130, 88, -655, -1_020, -1_540, -1_811, -2_630]);
     m
 }
 
@@ -210,6 +212,7 @@ pub fn worst_case(kind: Kind) -> Frame {
             log_mel_cdb: [i16::MIN; aim_wire::MFCC_MEL_BANDS],
             mfcc_ddb: [i16::MIN; aim_wire::MFCC_COEFFS],
             harmonic: [i16::MIN; aim_wire::MFCC_HARMONIC],
+            second_harmonic: Some([i16::MIN; aim_wire::MFCC_HARMONIC]),
         }),
         Kind::Beacon => Body::Beacon(aim_wire::Beacon {
             fraction: u16::MAX,
@@ -280,6 +283,8 @@ pub fn random_frame(rng: &mut Rng, array_id: u8, seq: u16) -> Frame {
             log_mel_cdb: core::array::from_fn(|_| rng.u64() as i16),
             mfcc_ddb: core::array::from_fn(|_| rng.u64() as i16),
             harmonic: core::array::from_fn(|_| rng.u64() as i16),
+            second_harmonic: (rng.byte() & 1 == 1)
+                .then(|| core::array::from_fn(|_| rng.u64() as i16)),
         }),
         _ => Body::Health(Health {
             blocks: small(rng),
