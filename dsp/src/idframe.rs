@@ -401,13 +401,12 @@ mod tests {
         if (second - 164.0).abs() < 0.5 {
             assert!(f.second.envelope_db[0] > 10.0, "{:?}", f.second);
         }
-        // The drone alone: its comb first, and the second is neither its shaft comb (164 Hz),
-        // nor its octave, nor another line of its own.
+        // The drone alone: its comb first; the second is a comb of noise maxima, found but far
+        // weaker (none of the drone's own lines, which would sum near the first's salience).
         let f = features_of(328.0, &drone, 2);
         assert!((hz(&f.harmonic) - 328.0).abs() < 0.5, "{:?}", f.harmonic);
-        assert!(f.second.salience_db < f.harmonic.salience_db, "{f:?}");
-        let b1 = hz(&f.second) / BIN_HZ;
-        assert!(!related(b1, 328.0 / BIN_HZ), "second comb at {} Hz", hz(&f.second));
+        assert!(f.second.salience_db > 0.0, "{f:?}");
+        assert!(f.second.salience_db + 15.0 < f.harmonic.salience_db, "{f:?}");
     }
 
     #[test]

@@ -77,13 +77,17 @@ pub struct Identifier {
     bpf_frames: u32,
     /// Verdicts so far.
     verdicts: u32,
-    /// `Mfcc` frames of the tracked array seen (each makes a verdict once the window is full).
+    /// `Mfcc` frames of the tracked array classified (each makes a verdict once the window is
+    /// full; frames without the second comb are not counted).
     frames: u64,
     /// Sample index of the newest one: an older one means the array restarted its clock.
     last_index: u64,
     /// `Mfcc` frames of the tracked array without the second comb (firmware older than the
     /// model's features): not classified.
     frames_without_second_comb: u64,
+    /// The newest `Mfcc` frame had no second comb: no verdict until one that has comes (a
+    /// board put back on older firmware does not keep the newer firmware's last verdict).
+    lacks_second_comb: bool,
 }
 
 /// Fewest verdicts (one per `Mfcc` frame, 0.256 s) before the profile follows a class: 10 s.
@@ -132,6 +136,7 @@ impl Identifier {
             frames: 0,
             last_index: 0,
             frames_without_second_comb: 0,
+            lacks_second_comb: false,
         })
     }
 
@@ -141,10 +146,11 @@ impl Identifier {
     }
 
     /// The `drone` field for the latest verdict; none before the tracked array's first `Mfcc`
-    /// frame (a board that sends none, older firmware: fixes as before).
+    /// frame (a board that sends none, older firmware: fixes as before) and while its newest
+    /// `Mfcc` frame carries no second comb (firmware older than the model's features).
     fn field(&self) -> Option<crate::tracker::DroneField> {
         use crate::tracker::DroneField;
-        if self.frames == 0 {
+        if self.frames == 0 || self.lacks_second_comb {
             return None;
         }
         Some(match self.live.verdict() {
@@ -213,8 +219,12 @@ impl Identifier {
                 );
             }
             self.frames_without_second_comb += 1;
+            self.lacks_second_comb = true;
+            // The window must not mix the two firmwares' frames.
+            self.live.clear();
             return None;
         }
+        self.lacks_second_comb = false;
         if sample_index < self.last_index {
             // The array rebooted: its new frames do not continue the old window (the drone,
             // and so the evidence, stays).

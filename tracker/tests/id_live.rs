@@ -334,28 +334,49 @@ fn aim_replay_names_the_drone_in_every_fix_once_a_window_is_full() {
 fn frames_of_firmware_without_the_second_comb_get_no_verdict_and_a_note() {
     // The bundled model reads the second comb; frames of older firmware carry none, and the
     // verdict on them would rest on features it never saw on a drone. The fixes go on without
-    // a `drone` field, and stderr says why once.
+    // a `drone` field, and stderr says why once. Two streams: older firmware throughout, and
+    // newer firmware put back on older firmware at 7 s (its last verdict must not stay).
     let dir = std::env::temp_dir().join(format!("aim-id-old-fw-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let site = dir.join("site.toml");
     std::fs::write(&site, common::SITE_TOML).unwrap();
-    let mut frames = link_with_mfcc(&clip("dji-mini-2", 7_100_001, 48_000, 6.0));
-    let mut old = 0;
-    for f in &mut frames {
-        if let Body::Mfcc(m) = &mut f.body {
-            assert!(m.second_harmonic.is_some(), "this build's frames carry it");
-            m.second_harmonic = None;
-            old += 1;
+    let link = link_with_mfcc(&clip("dji-mini-2", 7_100_001, 48_000, 12.0));
+    for old_from_s in [0.0, 7.0] {
+        let mut frames = link.clone();
+        let mut old = 0;
+        for f in &mut frames {
+            if let Body::Mfcc(m) = &mut f.body {
+                assert!(m.second_harmonic.is_some(), "this build's frames carry it");
+                if f.header.sample_index as f64 >= old_from_s * 48_000.0 {
+                    m.second_harmonic = None;
+                    old += 1;
+                }
+            }
         }
+        assert!(old >= 15, "{old} Mfcc frames");
+        let rec = dir.join("old.aimraw");
+        std::fs::write(&rec, common::bytes(&frames)).unwrap();
+        let out = common::aim_replay_output(&rec, &site, &[]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let fixes: Vec<serde_json::Value> = std::str::from_utf8(&out.stdout)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert!(fixes.len() > 60, "{} fixes", fixes.len());
+        let t = |f: &serde_json::Value| f["t"].as_f64().unwrap();
+        let with_field = |from: f64, to: f64| {
+            fixes.iter().filter(|f| (from..to).contains(&t(f)) && f.get("drone").is_some()).count()
+        };
+        // After the first frame without it has come (its window ends by old_from_s + 0.8 s):
+        // no field.
+        assert_eq!(with_field(old_from_s + 1.5, 100.0), 0, "from {old_from_s} s");
+        // Before it, verdicts as usual (the first full window by about 2 s).
+        if old_from_s > 0.0 {
+            assert!(with_field(3.0, old_from_s) > 20, "from {old_from_s} s");
+        }
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.matches("carry no second comb").count(), 1, "{err}");
     }
-    assert!(old >= 18, "{old} Mfcc frames");
-    let rec = dir.join("old.aimraw");
-    std::fs::write(&rec, common::bytes(&frames)).unwrap();
-    let out = common::aim_replay_output(&rec, &site, &[]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let text = String::from_utf8(out.stdout).unwrap();
-    assert!(text.lines().count() > 30 && !text.contains("drone"), "{text}");
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.matches("carry no second comb").count(), 1, "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -323,7 +323,7 @@ fn csv_field(text: &str) -> String {
 
 /// Most passes over the training set `aim id train` takes.
 const MAX_EPOCHS: usize = 100_000;
-/// Most hidden units of a network (4096: a 4096 × 69 layer and its output, about 1 MB).
+/// Most hidden units of a network (4096: a 4096 × 89 layer and its output, about 1.5 MB).
 const MAX_HIDDEN: usize = 4096;
 /// Most networks in an ensemble.
 const MAX_MEMBERS: usize = 32;

@@ -106,8 +106,8 @@ pub fn features(frames: &[Mfcc]) -> Vec<f32> {
         .sum::<f32>()
         / (MFCC_MEL_BANDS as f32 * pairs);
     v.push(flux);
-    // Frames of firmware without the second comb read as none found (the live classifier
-    // does not classify them: `Live::push`).
+    // Frames of firmware without the second comb read as none found (`aim track` does not
+    // classify them: `session::Identifier::push`).
     let second: Vec<[f32; MFCC_HARMONIC]> =
         frames.iter().map(|f| f.second_harmonic_values().unwrap_or_default()).collect();
     comb_features(&mut v, &second);

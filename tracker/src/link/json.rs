@@ -130,10 +130,10 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                     v[format!("comb_{k}")] = x;
                 }
             }
-            // The strongest comb of another source: null when there is none (or the firmware
-            // sends none).
+            // The strongest comb of another source: null when there is none (salience 0, as
+            // `host-sim analyze` says) or the firmware sends none.
             v["second_comb"] = match &p.second_harmonic {
-                Some(q) if *q != [0; aim_wire::MFCC_HARMONIC] => comb_json(q),
+                Some(q) if q[1] > 0 => comb_json(q),
                 _ => Value::Null,
             };
             v
