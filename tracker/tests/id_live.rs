@@ -274,6 +274,24 @@ fn link_with_mfcc(x: &[f32]) -> Vec<Frame> {
         .collect()
 }
 
+/// `frames` written to `rec` and replayed by `aim replay` with `site`: its fixes (JSON lines)
+/// and its stderr.
+fn replay_fixes(
+    rec: &std::path::Path,
+    site: &std::path::Path,
+    frames: &[Frame],
+) -> (Vec<serde_json::Value>, String) {
+    std::fs::write(rec, common::bytes(frames)).unwrap();
+    let out = common::aim_replay_output(rec, site, &[]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let fixes = std::str::from_utf8(&out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    (fixes, String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
 #[test]
 fn aim_replay_names_the_drone_in_every_fix_once_a_window_is_full() {
     let dir = std::env::temp_dir().join(format!("aim-id-live-{}", std::process::id()));
@@ -285,14 +303,7 @@ fn aim_replay_names_the_drone_in_every_fix_once_a_window_is_full() {
         let x = clip(class, seed, 48_000, 14.0);
         let frames = link_with_mfcc(&x);
         let rec = dir.join(format!("{class}.aimraw"));
-        std::fs::write(&rec, common::bytes(&frames)).unwrap();
-        let out = common::aim_replay_output(&rec, &site, &[]);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        let fixes: Vec<serde_json::Value> = std::str::from_utf8(&out.stdout)
-            .unwrap()
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect();
+        let (fixes, _) = replay_fixes(&rec, &site, &frames);
         assert!(fixes.len() > 30, "{} fixes", fixes.len());
         // Every fix has the field once the first Mfcc frame is in; most verdicts name the
         // clip's class (one window is right about 96 % of the time on held-out clips).
@@ -354,15 +365,7 @@ fn frames_of_firmware_without_the_second_comb_get_no_verdict_and_a_note() {
             }
         }
         assert!(old >= 15, "{old} Mfcc frames");
-        let rec = dir.join("old.aimraw");
-        std::fs::write(&rec, common::bytes(&frames)).unwrap();
-        let out = common::aim_replay_output(&rec, &site, &[]);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        let fixes: Vec<serde_json::Value> = std::str::from_utf8(&out.stdout)
-            .unwrap()
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect();
+        let (fixes, err) = replay_fixes(&dir.join("old.aimraw"), &site, &frames);
         assert!(fixes.len() > 60, "{} fixes", fixes.len());
         let t = |f: &serde_json::Value| f["t"].as_f64().unwrap();
         let with_field = |from: f64, to: f64| {
@@ -375,7 +378,6 @@ fn frames_of_firmware_without_the_second_comb_get_no_verdict_and_a_note() {
         if old_from_s > 0.0 {
             assert!(with_field(3.0, old_from_s) > 20, "from {old_from_s} s");
         }
-        let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(err.matches("carry no second comb").count(), 1, "{err}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
