@@ -155,6 +155,24 @@ fn per_recording_scores_the_live_verdict_once_per_recording() {
     }
     let want: Vec<Vec<u64>> = serde_json::from_value(r["confusion"]["counts"].clone()).unwrap();
     assert_eq!(counts, want);
+    // `classify` gives each recording the same verdict and drone probability.
+    let rows: Vec<Vec<String>> =
+        text.lines().skip(1).map(|l| l.split(',').map(String::from).collect()).collect();
+    let mut args = vec!["classify", "--model", model];
+    args.extend(rows.iter().map(|r| r[0].as_str()));
+    let out = aim(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let verdicts: Vec<serde_json::Value> = std::str::from_utf8(&out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(verdicts.len(), rows.len());
+    for (row, v) in rows.iter().zip(&verdicts) {
+        assert_eq!((v["file"].as_str(), v["class"].as_str()), (Some(&*row[0]), Some(&*row[3])));
+        let p = v["drone_probability"].as_f64().unwrap();
+        assert!((p - row[2].parse::<f64>().unwrap()).abs() < 1e-6, "{row:?}: {v}");
+    }
     assert!(aim(&["eval", long.to_str().unwrap(), "--model", model, "--scores", "x.csv"])
         .stderr
         .starts_with(b"error"));

@@ -12,7 +12,8 @@
 //!   probability against `none`) with the threshold at the stated false-alarm rate; per window
 //!   of `Mfcc` frames, or per recording by the live verdict at its end ([`chip::Live`]);
 //!   `--set-threshold` writes that threshold into the model file.
-//! - `aim id classify WAV... --model MODEL`: one JSON line per file:
+//! - `aim id classify WAV... --model MODEL`: one JSON line per file, the verdict at its end
+//!   as `aim track` would give it and `aim id eval --per-recording` scores it:
 //!   `{"file":..,"class":..,"probability":..,"drone_probability":..,"probabilities":{..}}`.
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -593,14 +594,9 @@ fn classify(a: ClassifyArgs) -> anyhow::Result<()> {
     let ex = Extractor::new();
     let mut out = std::io::stdout().lock();
     for f in &a.wav {
-        // A longer recording read as chip frames: the windows' probabilities averaged.
-        let windows = features_of(f, &ex, m.reads_chip_frames(), None)?;
-        let mut p = vec![0.0f32; m.classes.len()];
-        for v in &windows {
-            for (a, b) in p.iter_mut().zip(m.predict(v)) {
-                *a += b / windows.len() as f32;
-            }
-        }
+        // The verdict `aim track` would give at the recording's end (a chip model: the live
+        // pooling of the last windows), the same as `aim id eval --per-recording` scores.
+        let p = recording_probabilities(&m, f, &ex, chip::DECISION_WINDOWS, chip::TYPE_WINDOWS)?;
         let best = m.decide(&p);
         let probabilities: serde_json::Map<String, serde_json::Value> =
             m.classes.iter().zip(&p).map(|(c, v)| (c.clone(), serde_json::json!(v))).collect();
