@@ -82,9 +82,9 @@ pub struct Identifier {
     frames: u64,
     /// Sample index of the newest one: an older one means the array restarted its clock.
     last_index: u64,
-    /// `Mfcc` frames of the tracked array without the second comb (firmware older than the
-    /// model's features): not classified.
-    frames_without_second_comb: u64,
+    /// stderr has said that the tracked array's `Mfcc` frames carry no second comb (firmware
+    /// older than the model's features; such frames are not classified).
+    noted_no_second_comb: bool,
     /// The newest `Mfcc` frame had no second comb: no verdict until one that has comes (a
     /// board put back on older firmware does not keep the newer firmware's last verdict).
     lacks_second_comb: bool,
@@ -135,7 +135,7 @@ impl Identifier {
             verdicts: 0,
             frames: 0,
             last_index: 0,
-            frames_without_second_comb: 0,
+            noted_no_second_comb: false,
             lacks_second_comb: false,
         })
     }
@@ -212,13 +212,13 @@ impl Identifier {
         if frame.second_harmonic.is_none() {
             // Older firmware: the model's second-comb features would read as "none found",
             // which it never saw on a drone. No verdict rather than a wrong one.
-            if self.frames_without_second_comb == 0 {
+            if !self.noted_no_second_comb {
                 eprintln!(
                     "note: the tracked array's Mfcc frames carry no second comb (firmware older \
                      than the drone classifier's features): no drone verdict until it is updated"
                 );
             }
-            self.frames_without_second_comb += 1;
+            self.noted_no_second_comb = true;
             self.lacks_second_comb = true;
             // The window must not mix the two firmwares' frames.
             self.live.clear();

@@ -63,22 +63,10 @@ fn comb_names(v: &mut Vec<String>, prefix: &str) {
 /// `max(0, salience − 3 dB)²`, the largest salience and the share of frames whose fundamental
 /// is within 1/12 octave of the previous frame's.
 fn comb_features(v: &mut Vec<f32>, h: &[[f32; MFCC_HARMONIC]]) {
-    let mut f0: Vec<f32> = h.iter().map(|a| a[0]).collect();
-    f0.sort_by(f32::total_cmp);
-    v.push(f0.get(f0.len() / 2).copied().unwrap_or(0.0));
-    v.push(mean_sd(h.iter().map(|a| a[0])).1);
-    for i in 1..MFCC_HARMONIC {
-        v.push(mean_sd(h.iter().map(move |a| a[i])).0);
-    }
-    let w: Vec<f32> = h.iter().map(|a| (a[1] - 3.0).max(0.0).powi(2) + 1e-6).collect();
-    let wsum: f32 = w.iter().sum();
-    for i in (0..MFCC_HARMONIC).filter(|&i| i != 1) {
-        v.push(h.iter().zip(&w).map(|(a, w)| a[i] * w).sum::<f32>() / wsum);
-    }
+    super::clip::comb_stats(v, h);
+    super::clip::comb_weighted(v, h);
     v.push(h.iter().map(|a| a[1]).fold(0.0, f32::max));
-    let pairs = h.len().saturating_sub(1).max(1) as f32;
-    let steady = h.windows(2).filter(|p| (p[0][0] - p[1][0]).abs() < 1.0 / 12.0).count();
-    v.push(steady as f32 / pairs);
+    v.push(super::clip::f0_continuity(h));
 }
 
 /// The feature vector of a window of frames (oldest first; at least one).

@@ -76,6 +76,37 @@ pub(crate) fn mean_sd(x: impl Iterator<Item = f32> + Clone) -> (f32, f32) {
     (m, var.sqrt())
 }
 
+/// Of per-frame comb features `h` (in [`aim_dsp::features::HarmonicFeatures::to_array`]
+/// order: fundamental, salience, ...): the median fundamental, its standard deviation and the
+/// mean of each of the other eight.
+pub(super) fn comb_stats(v: &mut Vec<f32>, h: &[[f32; HARMONIC_FEATURES]]) {
+    let mut f0: Vec<f32> = h.iter().map(|a| a[0]).collect();
+    f0.sort_by(f32::total_cmp);
+    v.push(f0.get(f0.len() / 2).copied().unwrap_or(0.0));
+    v.push(mean_sd(h.iter().map(|a| a[0])).1);
+    for i in 1..HARMONIC_FEATURES {
+        v.push(mean_sd(h.iter().map(move |a| a[i])).0);
+    }
+}
+
+/// Of per-frame comb features `h` (as [`comb_stats`]): each but the salience averaged with
+/// weights `max(0, salience − 3 dB)²`.
+pub(super) fn comb_weighted(v: &mut Vec<f32>, h: &[[f32; HARMONIC_FEATURES]]) {
+    let w: Vec<f32> = h.iter().map(|a| (a[1] - 3.0).max(0.0).powi(2) + 1e-6).collect();
+    let wsum: f32 = w.iter().sum();
+    for i in (0..HARMONIC_FEATURES).filter(|&i| i != 1) {
+        v.push(h.iter().zip(&w).map(|(a, w)| a[i] * w).sum::<f32>() / wsum);
+    }
+}
+
+/// Of per-frame comb features `h` (as [`comb_stats`]): the share of frames whose fundamental
+/// is within 1/12 octave of the previous frame's (of the frame pairs; 0 for one frame).
+pub(super) fn f0_continuity(h: &[[f32; HARMONIC_FEATURES]]) -> f32 {
+    let pairs = h.len().saturating_sub(1).max(1) as f32;
+    let steady = h.windows(2).filter(|p| (p[0][0] - p[1][0]).abs() < 1.0 / 12.0).count();
+    steady as f32 / pairs
+}
+
 /// The feature vector of a 16 kHz clip (at least one frame long).
 pub fn features(x: &[f32], ex: &Extractor) -> Vec<f32> {
     let mut frames = Vec::new();
@@ -106,19 +137,9 @@ pub fn features(x: &[f32], ex: &Extractor) -> Vec<f32> {
         v.push(mean_sd(rel).0);
     }
     let h: Vec<[f32; HARMONIC_FEATURES]> = frames.iter().map(|f| f.harmonic.to_array()).collect();
-    let mut f0: Vec<f32> = h.iter().map(|a| a[0]).collect();
-    f0.sort_by(f32::total_cmp);
-    v.push(f0.get(f0.len() / 2).copied().unwrap_or(0.0));
-    v.push(mean_sd(h.iter().map(|a| a[0])).1);
-    for i in 1..HARMONIC_FEATURES {
-        v.push(mean_sd(h.iter().map(move |a| a[i])).0);
-    }
+    comb_stats(&mut v, &h);
     v.extend(ex.features(&mean_power).harmonic.to_array());
-    let w: Vec<f32> = h.iter().map(|a| (a[1] - 3.0).max(0.0).powi(2) + 1e-6).collect();
-    let wsum: f32 = w.iter().sum();
-    for i in (0..HARMONIC_FEATURES).filter(|&i| i != 1) {
-        v.push(h.iter().zip(&w).map(|(a, w)| a[i] * w).sum::<f32>() / wsum);
-    }
+    comb_weighted(&mut v, &h);
     let mut sal: Vec<f32> = h.iter().map(|a| a[1]).collect();
     sal.sort_by(f32::total_cmp);
     v.push(sal.get(sal.len() * 9 / 10).copied().unwrap_or(0.0));
@@ -136,8 +157,7 @@ pub fn features(x: &[f32], ex: &Extractor) -> Vec<f32> {
         .sum::<f32>()
         / pairs;
     v.push(flux);
-    let steady = h.windows(2).filter(|p| (p[0][0] - p[1][0]).abs() < 1.0 / 12.0).count();
-    v.push(steady as f32 / pairs);
+    v.push(f0_continuity(&h));
     debug_assert_eq!(v.len(), FEATURES);
     v
 }

@@ -125,15 +125,15 @@ pub fn frame(frame: &Frame, sample_rate_hz: Option<u32>) -> Value {
                     .collect::<Vec<_>>(),
             });
             // The first comb's fields flat (`comb_f0_hz`, ...), as before the second existed.
-            if let Value::Object(first) = comb_json(&p.harmonic) {
+            if let Value::Object(first) = comb_json(&p.harmonic_values()) {
                 for (k, x) in first {
                     v[format!("comb_{k}")] = x;
                 }
             }
             // The strongest comb of another source: null when there is none (salience 0, as
             // `host-sim analyze` says) or the firmware sends none.
-            v["second_comb"] = match &p.second_harmonic {
-                Some(q) if q[1] > 0 => comb_json(q),
+            v["second_comb"] = match p.second_harmonic_values() {
+                Some(c) if c[1] > 0.0 => comb_json(&c),
                 _ => Value::Null,
             };
             v
@@ -200,16 +200,17 @@ pub fn stats(s: &LinkStats) -> Value {
     })
 }
 
-/// A comb's features from their wire units (`aim_wire::Mfcc::harmonic`): fundamental (Hz),
-/// salience, half- and third-way levels (dB) and harmonics 2..=6 relative to the first (dB).
-fn comb_json(q: &[i16; aim_wire::MFCC_HARMONIC]) -> Value {
-    let db = |v: i16| round(f64::from(v) / 100.0, 2);
+/// A comb's features (`aim_wire::Mfcc::harmonic_values`: `log2(f0 / 250 Hz)`, then dB) as
+/// JSON: fundamental (Hz), salience, half- and third-way levels (dB) and harmonics 2..=6
+/// relative to the first (dB), rounded to 0.01.
+fn comb_json(c: &[f32; aim_wire::MFCC_HARMONIC]) -> Value {
+    let db = |v: f32| round(f64::from(v), 2);
     json!({
-        "f0_hz": round(250.0 * (f64::from(q[0]) * 0.001).exp2(), 2),
-        "salience_db": db(q[1]),
-        "half_db": db(q[2]),
-        "third_db": db(q[3]),
-        "envelope_db": q[4..].iter().map(|&v| db(v)).collect::<Vec<_>>(),
+        "f0_hz": round(250.0 * f64::from(c[0]).exp2(), 2),
+        "salience_db": db(c[1]),
+        "half_db": db(c[2]),
+        "third_db": db(c[3]),
+        "envelope_db": c[4..].iter().map(|&v| db(v)).collect::<Vec<_>>(),
     })
 }
 
