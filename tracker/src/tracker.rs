@@ -1278,8 +1278,9 @@ impl Tracker {
 /// the fix's distance from the array, m), both times `nlos_factor` when the fix's LoS flag
 /// is false. Fitted to the `aim` filter's errors on the default suite's tuning seeds 101–110
 /// (the mean over families of |share inside the 95 % ellipsoid − 95 %| smallest on a grid;
-/// BENCHMARKS.md "Honest covariance"; kept in session 25 when the errors shrank, see "Issue
-/// 12, session 25": conservative within 15 m, and a refit would undercover far drones).
+/// BENCHMARKS.md "Honest covariance"; kept in session 25 when the errors shrank, see
+/// "Held-out evaluation, session 25": conservative within 15 m, and a refit would
+/// undercover far drones).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SingleArrayError {
     /// σ along the ray at the array, m.

@@ -72,8 +72,7 @@ pub struct AimConfig {
     /// rotors show (a circle's 0.56 m/s² turn tilts the rotors 3°, raising the thrust by
     /// 0.16 % and the BPF by 0.08 %). Held (0.02 before session 25) the velocity lagged every
     /// turn: on the tuning seeds the mean of the 16 families' `aim` error was 3.39 m against
-    /// 2.50 m now, the flights that never stop gaining most (BENCHMARKS.md, "Issue 12,
-    /// session 25").
+    /// 2.50 m now (BENCHMARKS.md, "Held-out evaluation, session 25").
     pub q_cruise: f64,
     /// After a motion-class change the velocity may still be changing for this long, s.
     pub manoeuvre_hold_s: f64,
