@@ -649,22 +649,30 @@ mod tests {
     use crate::site::ArrayPose;
     use crate::testutil::doa;
 
-    /// A drone hovers, then flies a straight leg at 1.5 m/s in `heading` (rad); returns the
-    /// filter's velocity direction and position error at the end of the leg.
-    fn fly_leg(config: AimConfig, heading: f64) -> (f64, f64) {
+    /// A drone hovers 3 s at `path(0)`, then moves at [`FLY_SPEED_MPS`] along `path(s)`
+    /// (world m, `s` the time since it set off) with no thrust change heard, seen from an array
+    /// at the origin for `steps` steps of 0.1 s (DoA noise drawn from `seed`); with
+    /// `cruise_frames` the speed also reaches the filter as one cruise-speed frame every 0.5 s
+    /// (±0.2 m/s, as the wake split gives them). Returns every step's time (s), estimate and
+    /// true position.
+    fn fly_from_hover(
+        config: AimConfig,
+        seed: u64,
+        steps: usize,
+        path: impl Fn(f64) -> [f64; 3],
+        cruise_frames: bool,
+    ) -> Vec<(f64, Estimate, [f64; 3])> {
         let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
         let mut filter = AimFilter::new(config);
-        let mut rng = crate::testutil::Rng::new(7);
-        let start = [5.0, 3.0, 2.0];
+        let mut rng = crate::testutil::Rng::new(seed);
         let dt = 0.1;
-        let mut last = None;
-        for k in 0..100 {
+        let mut out = Vec::with_capacity(steps);
+        for k in 0..steps {
             let t = k as f64 * dt;
             let moving = t >= 3.0;
-            let run = if moving { 1.5 * (t - 3.0) } else { 0.0 };
-            let pos = [start[0] + run * heading.cos(), start[1] + run * heading.sin(), start[2]];
+            let pos = path(if moving { t - 3.0 } else { 0.0 });
             let speed = AcousticSpeed {
-                horizontal: if moving { 1.5 } else { 0.0 },
+                horizontal: if moving { FLY_SPEED_MPS } else { 0.0 },
                 horizontal_sigma: 0.2,
                 vertical: 0.0,
                 vertical_sigma: 0.05,
@@ -672,17 +680,35 @@ mod tests {
                 accelerating: false,
             };
             let motion = if moving { MotionClass::Horizontal } else { MotionClass::Hover };
-            let step = seen_step(&array, t, dt, doa(t, pos, &mut rng), motion, speed);
+            let mut step = seen_step(&array, t, dt, doa(t, pos, &mut rng), motion, speed);
+            if cruise_frames {
+                // Drawn at every step, used at every fifth: the draws the figures of
+                // `a_turn_in_cruise_is_followed_without_a_thrust_change` were measured with.
+                let v = FLY_SPEED_MPS + 0.2 * rng.normal();
+                if moving && k % 5 == 0 {
+                    step.cruise_speeds = Some(vec![(v, 0.2)]);
+                }
+            }
             if let Some(est) = filter.step(&step) {
-                let err = crate::observation::norm([
-                    est.position[0] - pos[0],
-                    est.position[1] - pos[1],
-                    est.position[2] - pos[2],
-                ]);
-                last = Some((est.velocity[1].atan2(est.velocity[0]), err));
+                out.push((t, est, pos));
             }
         }
-        last.unwrap()
+        out
+    }
+
+    /// Speed of the flights of [`fly_from_hover`], m/s.
+    const FLY_SPEED_MPS: f64 = 1.5;
+
+    /// A drone hovers, then flies a straight leg at 1.5 m/s in `heading` (rad); returns the
+    /// filter's velocity direction and position error at the end of the leg.
+    fn fly_leg(config: AimConfig, heading: f64) -> (f64, f64) {
+        let start = [5.0, 3.0, 2.0];
+        let leg = |s: f64| {
+            let run = FLY_SPEED_MPS * s;
+            [start[0] + run * heading.cos(), start[1] + run * heading.sin(), start[2]]
+        };
+        let (_, est, pos) = fly_from_hover(config, 7, 100, leg, false).pop().unwrap();
+        (est.velocity[1].atan2(est.velocity[0]), crate::observation::distance(est.position, pos))
     }
 
     /// One step of `array` alone, in line of sight, with `doa` (no other arrays, no range
@@ -729,45 +755,17 @@ mod tests {
     /// centre) for 25 s with no thrust change heard, bearings and the cruise speed (1.5 ±
     /// 0.2 m/s per 0.5 s) its only cues; returns the mean position error (m) over its last 10 s.
     fn fly_circle(config: AimConfig) -> f64 {
-        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
-        let mut filter = AimFilter::new(config);
-        let mut rng = crate::testutil::Rng::new(3);
-        let (centre, radius, speed_mps) = ([6.0, 5.0, 2.0], 4.0, 1.5);
-        let dt = 0.1;
-        let (mut sum, mut n) = (0.0, 0);
-        for k in 0..280 {
-            let t = k as f64 * dt;
-            let moving = t >= 3.0;
-            let angle = if moving { speed_mps / radius * (t - 3.0) } else { 0.0 };
-            let pos =
-                [centre[0] + radius * angle.cos(), centre[1] + radius * angle.sin(), centre[2]];
-            let speed = AcousticSpeed {
-                horizontal: if moving { speed_mps } else { 0.0 },
-                horizontal_sigma: 0.2,
-                vertical: 0.0,
-                vertical_sigma: 0.05,
-                horizontal_accel: 0.0,
-                accelerating: false,
-            };
-            let motion = if moving { MotionClass::Horizontal } else { MotionClass::Hover };
-            let mut step = seen_step(&array, t, dt, doa(t, pos, &mut rng), motion, speed);
-            // One cruise-speed frame every 0.5 s, as the wake split gives them.
-            let frame = vec![(speed_mps + 0.2 * rng.normal(), 0.2)];
-            if moving && k % 5 == 0 {
-                step.cruise_speeds = Some(frame);
-            }
-            if let Some(est) = filter.step(&step) {
-                if t >= 18.0 {
-                    sum += crate::observation::norm([
-                        est.position[0] - pos[0],
-                        est.position[1] - pos[1],
-                        est.position[2] - pos[2],
-                    ]);
-                    n += 1;
-                }
-            }
-        }
-        sum / n as f64
+        let (centre, radius) = ([6.0, 5.0, 2.0], 4.0);
+        let circle = |s: f64| {
+            let angle = FLY_SPEED_MPS / radius * s;
+            [centre[0] + radius * angle.cos(), centre[1] + radius * angle.sin(), centre[2]]
+        };
+        let errors: Vec<f64> = fly_from_hover(config, 3, 280, circle, true)
+            .into_iter()
+            .filter(|(t, _, _)| *t >= 18.0)
+            .map(|(_, est, pos)| crate::observation::distance(est.position, pos))
+            .collect();
+        errors.iter().sum::<f64>() / errors.len() as f64
     }
 
     #[test]
