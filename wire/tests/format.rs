@@ -73,6 +73,15 @@ fn unhex(text: &str) -> Vec<u8> {
         .collect()
 }
 
+/// The frames decoded from `tests/golden/<name>-sample-base.hex`: the snapshot of a sample
+/// frame's bytes as older firmware sent them, before fields were appended (rule 3).
+fn older_firmware_snapshot(name: &str) -> Vec<Result<Frame, DecodeError>> {
+    let path = format!("{GOLDEN_DIR}/{name}-sample-base.hex");
+    let golden = std::fs::read_to_string(&path).unwrap();
+    let mut deframer: Deframer = Deframer::new();
+    deframer.feed(&unhex(&golden)).collect()
+}
+
 #[test]
 fn golden_bytes_of_every_kind() {
     // `AIM_WIRE_BLESS=1 cargo test -p aim-wire --test format` rewrites the snapshots.
@@ -109,10 +118,7 @@ fn hello_and_health_of_older_firmware_decode_with_the_appended_fields_at_their_d
     // sends them.
     let frames = sample_frames();
     for (name, index) in [("hello", 0), ("health", 3)] {
-        let path = format!("{GOLDEN_DIR}/{name}-sample-base.hex");
-        let golden = std::fs::read_to_string(&path).unwrap();
-        let mut deframer: Deframer = Deframer::new();
-        let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+        let decoded = older_firmware_snapshot(name);
         let mut expected = frames[index].clone();
         match &mut expected.body {
             Body::Hello(h) => {
@@ -141,7 +147,7 @@ fn hello_and_health_of_older_firmware_decode_with_the_appended_fields_at_their_d
             }
             _ => unreachable!(),
         }
-        assert_eq!(decoded, [Ok(expected)], "{path}");
+        assert_eq!(decoded, [Ok(expected)], "{name}-sample-base.hex");
     }
     // A payload cut inside the appended fields is malformed, not silently defaulted.
     let body = strip_crc(&raw(&frames[0])).to_vec();
@@ -496,9 +502,7 @@ fn mfcc_of_older_firmware_decode_with_no_second_comb() {
     let expected = aim_wire::Mfcc { second_harmonic: None, ..*m };
     assert_eq!((q, stats.malformed), (&expected, 0));
     // The snapshot of that frame's bytes as older firmware sent them decodes the same way.
-    let golden = std::fs::read_to_string(format!("{GOLDEN_DIR}/mfcc-sample-base.hex")).unwrap();
-    let mut deframer: Deframer = Deframer::new();
-    let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+    let decoded = older_firmware_snapshot("mfcc");
     assert!(
         matches!(&decoded[..], [Ok(Frame { body: Body::Mfcc(g), .. })] if g == q),
         "{decoded:?}"
@@ -520,9 +524,7 @@ fn peaks_of_older_firmware_decode_with_unstated_detection() {
     assert_eq!((q.bpf_chz, &q.peaks), (p.bpf_chz, &p.peaks));
     assert!(q.is_rotor() && p.is_rotor() && stats.malformed == 0);
     // The snapshot of that frame's bytes as older firmware sent them decodes the same way.
-    let golden = std::fs::read_to_string(format!("{GOLDEN_DIR}/peaks-sample-base.hex")).unwrap();
-    let mut deframer: Deframer = Deframer::new();
-    let decoded: Vec<_> = deframer.feed(&unhex(&golden)).collect();
+    let decoded = older_firmware_snapshot("peaks");
     assert!(
         matches!(&decoded[..], [Ok(Frame { body: Body::Peaks(g), .. })] if g == q),
         "{decoded:?}"
