@@ -52,10 +52,13 @@ pub const HARMONIC_FEATURES: usize = 9;
 /// Fundamental candidates: 1/24 octave from [`F0_LOW_HZ`] to [`F0_HIGH_HZ`].
 const F0_CANDIDATES: usize = 100;
 
+/// Reference of the comb fundamental's octave scale, Hz: `log2_f0` is `log2(f0 / F0_REF_HZ)`.
+pub const F0_REF_HZ: f32 = 250.0;
+
 /// The BPF harmonic features of one frame (units in the names; dB are whitened levels).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct HarmonicFeatures {
-    /// Comb fundamental, octaves re 250 Hz: `log2(f0 / 250)`.
+    /// Comb fundamental, octaves re [`F0_REF_HZ`] (250 Hz): `log2(f0 / 250)`.
     pub log2_f0: f32,
     /// Mean whitened level on the comb's harmonics, dB.
     pub salience_db: f32,
@@ -72,6 +75,11 @@ impl HarmonicFeatures {
     pub fn to_array(&self) -> [f32; HARMONIC_FEATURES] {
         let e = self.envelope_db;
         [self.log2_f0, self.salience_db, self.half_db, self.third_db, e[0], e[1], e[2], e[3], e[4]]
+    }
+
+    /// The comb fundamental, Hz.
+    pub fn f0_hz(&self) -> f32 {
+        F0_REF_HZ * libm::powf(2.0, self.log2_f0)
     }
 }
 
@@ -270,7 +278,7 @@ impl Extractor {
             *e = 10.0 * libm::log10f(p / first);
         }
         HarmonicFeatures {
-            log2_f0: libm::log2f(b0 * BIN_HZ / 250.0),
+            log2_f0: libm::log2f(b0 * BIN_HZ / F0_REF_HZ),
             salience_db,
             half_db: mean_at(&[0.5]),
             third_db: mean_at(&[1.0 / 3.0, 2.0 / 3.0]),
@@ -315,7 +323,7 @@ mod tests {
     fn harmonic_sum_finds_the_comb_fundamental() {
         for f0 in [140.0f32, 328.0, 560.0, 900.0] {
             let f = features_of(comb(f0, &[1.0, 0.7, 0.5, 0.35, 0.25, 0.2, 0.15, 0.1], 2));
-            let found = 250.0 * libm::powf(2.0, f.harmonic.log2_f0);
+            let found = f.harmonic.f0_hz();
             // 1/24-octave grid: within 3 %.
             assert!((found / f0 - 1.0).abs() < 0.03, "f0 {f0}: found {found}");
             assert!(f.harmonic.salience_db > 10.0, "{:?}", f.harmonic);

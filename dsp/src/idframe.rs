@@ -36,7 +36,7 @@
 use core::f32::consts::PI;
 
 use crate::bpf::{refine_peak, ANALYSIS_LEN, DECIMATED_RATE_HZ};
-use crate::features::HarmonicFeatures;
+use crate::features::{HarmonicFeatures, F0_REF_HZ};
 use crate::Config;
 
 /// Number of mel bands.
@@ -309,7 +309,7 @@ fn comb_features(mags: &[f32], white: &[f32], b0: f32) -> HarmonicFeatures {
         *e = 20.0 * libm::log10f(m / first);
     }
     HarmonicFeatures {
-        log2_f0: libm::log2f(b0 * BIN_HZ / 250.0),
+        log2_f0: libm::log2f(b0 * BIN_HZ / F0_REF_HZ),
         salience_db,
         half_db: mean_at(&[0.5]),
         third_db: mean_at(&[1.0 / 3.0, 2.0 / 3.0]),
@@ -368,7 +368,7 @@ mod tests {
         let amps = [0.1, 0.05, 0.025, 0.0125, 0.00625, 0.003];
         for f0 in [165.0f32, 328.0, 560.0, 900.0] {
             let h = features_of(f0, &amps, 2).harmonic;
-            let found = 250.0 * libm::powf(2.0, h.log2_f0);
+            let found = h.f0_hz();
             // Refined below one bin (1.95 Hz).
             assert!((found - f0).abs() < 0.5, "f0 {f0}: found {found}");
             assert!(h.salience_db > 20.0, "{h:?}");
@@ -391,9 +391,8 @@ mod tests {
         let pump = [0.2, 0.1, 0.05, 0.025, 0.0125, 0.006];
         let drone = [0.05, 0.025, 0.0125, 0.006];
         let f = features_of_two(328.0, &drone, 2, 230.0, &pump);
-        let hz = |h: &HarmonicFeatures| 250.0 * libm::powf(2.0, h.log2_f0);
-        assert!((hz(&f.harmonic) - 230.0).abs() < 0.5, "{:?}", f.harmonic);
-        let second = hz(&f.second);
+        assert!((f.harmonic.f0_hz() - 230.0).abs() < 0.5, "{:?}", f.harmonic);
+        let second = f.second.f0_hz();
         let on_drone = [328.0, 164.0].iter().any(|d| (second - d).abs() < 0.5);
         assert!(on_drone && f.second.salience_db > 15.0, "{second} Hz: {:?}", f.second);
         assert!(!related(second / BIN_HZ, 230.0 / BIN_HZ));
@@ -404,7 +403,7 @@ mod tests {
         // The drone alone: its comb first; the second is a comb of noise maxima, found but far
         // weaker (none of the drone's own lines, which would sum near the first's salience).
         let f = features_of(328.0, &drone, 2);
-        assert!((hz(&f.harmonic) - 328.0).abs() < 0.5, "{:?}", f.harmonic);
+        assert!((f.harmonic.f0_hz() - 328.0).abs() < 0.5, "{:?}", f.harmonic);
         assert!(f.second.salience_db > 0.0, "{f:?}");
         assert!(f.second.salience_db + 15.0 < f.harmonic.salience_db, "{f:?}");
     }

@@ -316,10 +316,13 @@ impl Printer {
             }
             Output::Mfcc(f) => {
                 let t = f.sample_index as f64 / self.fs;
-                let f0 = 250.0 * f64::from(f.harmonic.log2_f0).exp2();
+                let hz = |h: &aim_dsp::features::HarmonicFeatures| {
+                    f64::from(aim_dsp::features::F0_REF_HZ) * f64::from(h.log2_f0).exp2()
+                };
+                let f0 = hz(&f.harmonic);
                 // The second comb (none: salience 0).
-                let second = (f.second.salience_db > 0.0)
-                    .then(|| (250.0 * f64::from(f.second.log2_f0).exp2(), f.second.salience_db));
+                let second =
+                    (f.second.salience_db > 0.0).then(|| (hz(&f.second), f.second.salience_db));
                 if self.jsonl {
                     serde_json::json!({
                         "kind": "mfcc", "t": t, "mfcc_db": f.mfcc_db.to_vec(),

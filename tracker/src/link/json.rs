@@ -206,7 +206,7 @@ pub fn stats(s: &LinkStats) -> Value {
 fn comb_json(c: &[f32; aim_wire::MFCC_HARMONIC]) -> Value {
     let db = |v: f32| round(f64::from(v), 2);
     json!({
-        "f0_hz": round(250.0 * f64::from(c[0]).exp2(), 2),
+        "f0_hz": round(f64::from(aim_dsp::features::F0_REF_HZ) * f64::from(c[0]).exp2(), 2),
         "salience_db": db(c[1]),
         "half_db": db(c[2]),
         "third_db": db(c[3]),
