@@ -660,7 +660,7 @@ impl Filter for AimFilter {
 /// (v_h / `speed_ref_mps`)² above that speed (v_h: the horizontal speed of `velocity`, m/s);
 /// unchanged below it or with `speed_ref_mps` ≤ 0 ([`AimConfig::turn_speed_ref_mps`]).
 fn turn_scaled(q: [f64; 3], velocity: [f64; 3], speed_ref_mps: f64) -> [f64; 3] {
-    if !(speed_ref_mps > 0.0) {
+    if speed_ref_mps.is_nan() || speed_ref_mps <= 0.0 {
         return q;
     }
     let k = (velocity[0].hypot(velocity[1]) / speed_ref_mps).powi(2).max(1.0);
