@@ -72,7 +72,7 @@ pub struct AimConfig {
     /// rotors show (a circle's 0.56 m/s² turn tilts the rotors 3°, raising the thrust by
     /// 0.16 % and the BPF by 0.08 %). Held (0.02 before session 25) the velocity lagged every
     /// turn: on the tuning seeds the mean of the 16 families' `aim` error was 3.39 m against
-    /// 2.50 m now (BENCHMARKS.md, "Held-out evaluation, session 25").
+    /// 2.50 m with it (BENCHMARKS.md, "Held-out evaluation, session 25").
     pub q_cruise: f64,
     /// Above this horizontal speed (m/s) a hypothesis's horizontal white-acceleration
     /// density (`q_moving` or `q_cruise`) grows as the square of its speed: a turn at rate ω
@@ -80,7 +80,10 @@ pub struct AimConfig {
     /// the acceleration noise. Without it the mixture preferred hypotheses too near the
     /// array on fast turns: bearings scale with the range, and a nearer, slower copy of a
     /// turn needs less acceleration (a 3 m/s circle of 5 m radius was tracked at 0.46 of its
-    /// range). 0 turns it off. Chosen on tuning seeds (BENCHMARKS.md, "Session 26").
+    /// range; with the scaling its error went from 3.72 to 3.53 m only: the Doppler cue that
+    /// must then set the range is weak). 0 turns it off. 1.5 m/s is tuned, and it is the speed
+    /// most of the default suite's flights fly at, so those keep the old prior; the fast
+    /// flights alone preferred 1.0 m/s (BENCHMARKS.md, "Held-out evaluation, session 26").
     pub turn_speed_ref_mps: f64,
     /// After a motion-class change the velocity may still be changing for this long, s.
     pub manoeuvre_hold_s: f64,
