@@ -437,9 +437,13 @@ impl Intake {
                 let working = state.recent_pairs.max().unwrap_or(0);
                 quality_scale = working_pairs_scale(mics.map(pair_count), working);
             }
-            if let Some(input) =
+            if let Some(mut input) =
                 input_of(id, f.header.sample_index, &f.body, time(s + 0.5 * span), quality_scale)
             {
+                // The site's calibration of this array's zenith (crate::zenith).
+                if let Input::Bearing(b) = &mut input {
+                    b.zenith_rad = pose.zenith_correction.correct(b.zenith_rad);
+                }
                 if input.t() < state.released_until {
                     self.stats.late += 1;
                 } else {
@@ -654,6 +658,40 @@ mod tests {
 
     fn collect(intake: &mut Intake, frame: &Frame, out: &mut Vec<Released>) {
         intake.push(frame, &mut |r| out.push(r)).unwrap();
+    }
+
+    /// The site's zenith correction (crate::zenith) is applied to every bearing of its array,
+    /// and only of its array: here 5° read low at 50–70°, so a frame reading 57.3° (1 rad)
+    /// arrives at 62.3°, its azimuth untouched; the other array's frame as sent.
+    #[test]
+    fn the_sites_zenith_correction_is_applied_to_its_arrays_bearings() {
+        let mut pose = ArrayPose::new(3, [0.0; 3], 0.0, 0.0, 0.0);
+        pose.zenith_correction =
+            crate::zenith::ZenithCorrection::from_degrees(&[[50.0, -5.0], [70.0, -5.0]]).unwrap();
+        let other = ArrayPose::new(4, [1.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let site = Site { arrays: vec![pose, other], room: None, sample_rate_hz: Some(16_000) };
+        let mut intake = Intake::new(site, IntakeConfig::default());
+        let mut out = Vec::new();
+        let doa = Doa { span_samples: 1600, ..Doa::new(0.5, 1.0, 0.25, 0.4) };
+        for id in [3u8, 4] {
+            for k in 0..3u64 {
+                let header = Header { array_id: id, seq: k as u16, sample_index: 1600 * k };
+                collect(&mut intake, &Frame { header, body: Body::Doa(doa) }, &mut out);
+            }
+        }
+        intake.finish(&mut |r| out.push(r));
+        let sent_zen = f64::from(doa.zenith_rad());
+        let sent_az = f64::from(doa.azimuth_rad());
+        let mut seen = [0, 0];
+        for r in &out {
+            if let Released::Input(Input::Bearing(b)) = r {
+                let want = if b.array_id == 3 { sent_zen + 5f64.to_radians() } else { sent_zen };
+                assert!((b.zenith_rad - want).abs() < 1e-12, "{b:?}");
+                assert!((b.azimuth_rad - sent_az).abs() < 1e-12, "{b:?}");
+                seen[usize::from(b.array_id == 4)] += 1;
+            }
+        }
+        assert_eq!(seen, [3, 3], "{out:?}");
     }
 
     /// A dead microphone of a 6-mic array leaves 10 of its 15 pairs with a peak in every frame:

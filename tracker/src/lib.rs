@@ -13,6 +13,7 @@
 //! - [`status`]: per-array link and board counters, the status line of `aim track`;
 //! - [`serve`]: the live map in the browser (`--serve`);
 //! - [`profile`], [`site`]: drone profiles and site files (TOML);
+//! - [`zenith`]: the site calibration of each array's zenith (`aim calibrate`);
 //! - [`id`]: is a drone in a recording, and which type (`aim id`);
 //! - [`output`]: fixes to other systems (MAVLink to an autopilot, in the site's NED frame);
 //! - [`multi`]: several arrays (§9): beacon clock sync, multilateration, array selection,
@@ -45,3 +46,4 @@ mod testutil;
 pub mod tracker;
 pub mod wake;
 pub mod yaw;
+pub mod zenith;

@@ -25,6 +25,8 @@ enum Command {
     Gateway(cmd::gateway::Args),
     /// Is a drone in a recording, and which type: train, evaluate, classify.
     Id(cmd::id::Args),
+    /// Calibrate the arrays' zenith from a recording against a reference track.
+    Calibrate(cmd::calibrate::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -35,6 +37,7 @@ fn main() -> std::process::ExitCode {
         Command::Track(args) => cmd::track::run(args),
         Command::Gateway(args) => cmd::gateway::run(args),
         Command::Id(args) => cmd::id::run(args),
+        Command::Calibrate(args) => cmd::calibrate::run(args),
     };
     aim_tracker::exit::exit_code(result)
 }

@@ -16,6 +16,9 @@
 //!                              # (checked against the array's Hello)
 //! clock_offset_s = 0.0         # optional: true time of the array's sample 0, s
 //! clock_drift_ppm = 0.0        # optional: the array clock's rate error, ppm
+//! zenith_correction_deg = [[27.5, -0.8], [72.5, -5.5]]  # optional: the site's calibration
+//!                              # of the zenith, [measured zenith °, measured − true °]
+//!                              # (`aim calibrate`, crate::zenith)
 //!
 //! [room]                       # optional: the flight volume, world metres, either
 //! min = [-1.0, -1.0, 0.0]
@@ -68,6 +71,9 @@ pub struct ArrayPose {
     pub clock_offset_s: f64,
     /// Rate error of the array's clock, ppm (its second lasts 1 + drift·1e-6 true seconds).
     pub clock_drift_ppm: f64,
+    /// The site's calibration of this array's zenith ([`crate::zenith`]), applied by the
+    /// intake to every bearing; empty: none.
+    pub zenith_correction: crate::zenith::ZenithCorrection,
 }
 
 impl ArrayPose {
@@ -89,6 +95,7 @@ impl ArrayPose {
             mic_positions_m: Vec::new(),
             clock_offset_s: 0.0,
             clock_drift_ppm: 0.0,
+            zenith_correction: crate::zenith::ZenithCorrection::default(),
         }
     }
 
@@ -276,6 +283,7 @@ struct ArrayEntry {
     positions: Option<toml::Spanned<Vec<[f64; 2]>>>,
     clock_offset_s: Option<toml::Spanned<f64>>,
     clock_drift_ppm: Option<toml::Spanned<f64>>,
+    zenith_correction_deg: Option<toml::Spanned<Vec<[f64; 2]>>>,
 }
 
 #[derive(Deserialize)]
@@ -481,6 +489,10 @@ fn array_pose(
     };
     pose.clock_offset_s = offset;
     pose.clock_drift_ppm = drift;
+    if let Some(c) = &a.zenith_correction_deg {
+        pose.zenith_correction = crate::zenith::ZenithCorrection::from_degrees(c.get_ref())
+            .map_err(|e| err(c.span(), format!("array {id}: zenith_correction_deg: {e}")))?;
+    }
     Ok(pose)
 }
 

@@ -1,5 +1,6 @@
 //! One module per `aim` subcommand: its arguments and its `run`.
 pub mod bus;
+pub mod calibrate;
 pub mod frames;
 pub mod gateway;
 pub mod id;

@@ -1,0 +1,604 @@
+//! Site calibration of each array's zenith: what the array reads against where the source is.
+//!
+//! A planar array in a room cannot resolve the ceiling's (and, off the floor, the floor's)
+//! image from the direct sound, so its zenith reads low, by an amount that grows towards the
+//! horizon and depends on the room and on where the array sits (BENCHMARKS, "Zenith bias from
+//! room reflections": −1° at zenith 30°, −4 to −7° at 65–80° on the floor of a 5 m hall, −10°
+//! on a table). The filter cannot learn it in flight: with one array nothing else tells the
+//! height. So it is measured once per installation, like the array's position: a source is
+//! moved through the room at the heights drones fly at while a reference (a total station,
+//! motion capture, marked spots with their times noted) gives where it is, and
+//! `aim calibrate FRAMES --reference REF.csv --site SITE.toml` fits the array's **zenith
+//! correction**: the median of (measured − true) zenith per 5° of the measured zenith, written
+//! into the site file as
+//!
+//! ```toml
+//! [[array]]
+//! zenith_correction_deg = [[27.5, -0.8], [32.5, -0.8], ..., [77.5, -4.1]]  # [measured zenith, bias], degrees
+//! ```
+//!
+//! The intake subtracts the bias, linearly interpolated in the measured zenith (held constant
+//! beyond the first and last points), from every `Doa` frame's zenith of that array before
+//! anything else sees it ([`crate::intake`]). It is a correction of the measurement, so it is
+//! an average over the heights and distances the calibration covered: towards the horizon the
+//! measured zenith stops following the true one (a far source reads little lower than a nearer
+//! one), and there one measured zenith stands for several true ones. The bias is a property of
+//! the site, not of the drone: it holds no airframe constant and is fitted on the site's own
+//! recording. Frames whose straight path crosses one of the site's `[[obstacle]]` boxes are
+//! left out of the fit.
+
+use std::path::Path;
+
+use crate::config::ConfigError;
+use crate::observation::Bearing;
+use crate::site::Site;
+
+/// Largest bias a correction may give, degrees: more is not a room's image but a broken array
+/// or a wrong site file.
+pub const MAX_BIAS_DEG: f64 = 30.0;
+/// Widest spread a bin may have to give a point by default, degrees ([`FitConfig`]).
+pub const MAX_MAD_DEG: f64 = 3.0;
+
+/// One array's zenith correction: points (measured zenith, bias = measured − true), rad, with
+/// the measured zenith strictly ascending. Empty: no correction.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ZenithCorrection {
+    points: Vec<(f64, f64)>,
+}
+
+impl ZenithCorrection {
+    /// A correction from points `[measured zenith, bias]` in degrees (the site file's form).
+    /// The zeniths must be finite, within 0–180° and strictly ascending; the biases finite and
+    /// within ±[`MAX_BIAS_DEG`]. The error says which point is wrong.
+    pub fn from_degrees(points: &[[f64; 2]]) -> Result<Self, String> {
+        for (k, p) in points.iter().enumerate() {
+            if !(p[0].is_finite() && (0.0..=180.0).contains(&p[0])) {
+                return Err(format!("point {}: zenith {} must be 0 to 180 degrees", k + 1, p[0]));
+            }
+            if !(p[1].is_finite() && p[1].abs() <= MAX_BIAS_DEG) {
+                return Err(format!(
+                    "point {}: bias {} must be within ±{MAX_BIAS_DEG} degrees",
+                    k + 1,
+                    p[1]
+                ));
+            }
+            if k > 0 && p[0] <= points[k - 1][0] {
+                return Err(format!(
+                    "point {}: zenith {} must be above the previous point's {}",
+                    k + 1,
+                    p[0],
+                    points[k - 1][0]
+                ));
+            }
+        }
+        Ok(Self { points: points.iter().map(|p| (p[0].to_radians(), p[1].to_radians())).collect() })
+    }
+
+    /// The points as `[measured zenith, bias]` in degrees.
+    pub fn to_degrees(&self) -> Vec<[f64; 2]> {
+        self.points.iter().map(|&(z, b)| [z.to_degrees(), b.to_degrees()]).collect()
+    }
+
+    /// No points: nothing is corrected.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The bias at measured zenith `zenith_rad`, rad: linear between points, the end points'
+    /// beyond them, 0 without points.
+    pub fn bias(&self, zenith_rad: f64) -> f64 {
+        let p = &self.points;
+        match p.iter().position(|&(z, _)| z >= zenith_rad) {
+            None => p.last().map_or(0.0, |&(_, b)| b),
+            Some(0) => p[0].1,
+            Some(i) => {
+                let ((z0, b0), (z1, b1)) = (p[i - 1], p[i]);
+                b0 + (b1 - b0) * (zenith_rad - z0) / (z1 - z0)
+            }
+        }
+    }
+
+    /// A measured zenith, rad, corrected: the measurement minus its bias.
+    pub fn correct(&self, zenith_rad: f64) -> f64 {
+        zenith_rad - self.bias(zenith_rad)
+    }
+
+    /// The site file's line for this correction (`zenith_correction_deg = [...]`), at 0.01°.
+    pub fn to_toml_line(&self) -> String {
+        let pts: Vec<String> =
+            self.to_degrees().iter().map(|p| format!("[{:.2}, {:.2}]", p[0], p[1])).collect();
+        format!("zenith_correction_deg = [{}]", pts.join(", "))
+    }
+}
+
+/// One bin of a fit: the frames whose measured zenith fell in it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bin {
+    /// Centre of the bin, degrees of measured zenith.
+    pub centre_deg: f64,
+    /// Frames in it.
+    pub frames: usize,
+    /// Median of (measured − true) zenith, degrees.
+    pub median_deg: f64,
+    /// Median absolute deviation of (measured − true) around that median, degrees.
+    pub mad_deg: f64,
+}
+
+/// How [`fit`] bins the frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FitConfig {
+    /// Width of a bin of measured zenith, degrees.
+    pub bin_deg: f64,
+    /// Fewest frames a bin needs to give a point.
+    pub min_frames: usize,
+    /// Largest spread (median absolute deviation of measured − true) a bin may have to give a
+    /// point, degrees: a wider one holds frames that locked onto a reflection or came round an
+    /// obstacle, and its median is no correction.
+    pub max_mad_deg: f64,
+}
+
+impl Default for FitConfig {
+    fn default() -> Self {
+        Self { bin_deg: 5.0, min_frames: 20, max_mad_deg: MAX_MAD_DEG }
+    }
+}
+
+/// The fit of one array: its correction and the bins behind it (including those with too few
+/// frames or too wide a spread to give a point).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fit {
+    /// The array.
+    pub array_id: u16,
+    /// The correction (bins with at least `min_frames` frames and a narrow spread, at their
+    /// centres).
+    pub correction: ZenithCorrection,
+    /// Every bin that had a frame, by layer and zenith.
+    pub bins: Vec<Bin>,
+    /// Frames used (with a reference position in line of sight).
+    pub frames: usize,
+}
+
+/// Median of a non-empty slice (sorted in place).
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    crate::iqr::quantile_sorted(v, 0.5)
+}
+
+/// One frame against the reference: measured and true zenith, rad, and the source's height
+/// above the array along its normal, m.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pair {
+    /// Zenith the array measured, rad.
+    pub measured_rad: f64,
+    /// Zenith of the reference position, rad.
+    pub true_rad: f64,
+    /// Height of the reference position above the array along its normal, m.
+    pub height_m: f64,
+}
+
+/// Fits one array's correction: per bin of the measured zenith, the median of (measured −
+/// true). A median, because a frame that locked onto a reflection is an outlier, not noise.
+pub fn fit(array_id: u16, pairs: &[Pair], config: FitConfig) -> Fit {
+    let width = config.bin_deg.max(0.1);
+    let mut bins: std::collections::BTreeMap<i64, Vec<f64>> = Default::default();
+    for p in pairs {
+        if !(p.measured_rad.is_finite() && p.true_rad.is_finite()) {
+            continue;
+        }
+        let key = (p.measured_rad.to_degrees() / width).floor() as i64;
+        bins.entry(key).or_default().push((p.measured_rad - p.true_rad).to_degrees());
+    }
+    let mut out = Vec::new();
+    for (key, mut errors) in bins {
+        let m = median(&mut errors);
+        let mut dev: Vec<f64> = errors.iter().map(|e| (e - m).abs()).collect();
+        out.push(Bin {
+            centre_deg: (key as f64 + 0.5) * width,
+            frames: errors.len(),
+            median_deg: m,
+            mad_deg: median(&mut dev),
+        });
+    }
+    let points: Vec<[f64; 2]> = out
+        .iter()
+        .filter(|b| b.frames >= config.min_frames.max(1) && b.mad_deg <= config.max_mad_deg)
+        .map(|b| [b.centre_deg, b.median_deg.clamp(-MAX_BIAS_DEG, MAX_BIAS_DEG)])
+        .collect();
+    let correction = ZenithCorrection::from_degrees(&points).unwrap_or_default();
+    Fit { array_id, correction, bins: out, frames: pairs.len() }
+}
+
+/// A reference track: where the calibration source was, world ENU m, at times on the arrays'
+/// time base (the intake's: the site file's clock offset plus the sample index over the rate).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Reference {
+    /// Times, s, strictly ascending.
+    pub t: Vec<f64>,
+    /// Positions, world ENU m.
+    pub position: Vec<[f64; 3]>,
+}
+
+impl Reference {
+    /// Parses a CSV with a header naming at least the columns `t`, `x`, `y` and `z` (any order,
+    /// other columns ignored: `host-sim`'s `truth.csv` is one). An error names the file and
+    /// the line.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        let err = |line: usize, message: String| ConfigError {
+            path: path.to_path_buf(),
+            line: Some(line),
+            message,
+        };
+        let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+        let Some((h, header)) = lines.next() else {
+            return Err(err(1, "empty: a header `t,x,y,z` and rows are needed".into()));
+        };
+        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let col = |name: &str| {
+            names.iter().position(|n| *n == name).ok_or_else(|| {
+                err(h + 1, format!("the header has no column `{name}` (it needs t, x, y, z)"))
+            })
+        };
+        let cols = [col("t")?, col("x")?, col("y")?, col("z")?];
+        let mut r = Reference::default();
+        for (i, line) in lines {
+            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+            let mut v = [0.0; 4];
+            for (k, &c) in cols.iter().enumerate() {
+                let f = fields.get(c).ok_or_else(|| {
+                    err(i + 1, format!("{} fields; column {} is missing", fields.len(), c + 1))
+                })?;
+                v[k] = f.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| {
+                    err(i + 1, format!("`{f}` is not a finite number (column {})", names[c]))
+                })?;
+            }
+            if r.t.last().is_some_and(|&last| v[0] <= last) {
+                return Err(err(i + 1, format!("t = {} is not after the row before", v[0])));
+            }
+            r.t.push(v[0]);
+            r.position.push([v[1], v[2], v[3]]);
+        }
+        if r.t.len() < 2 {
+            return Err(err(h + 1, "fewer than two rows: nothing to interpolate".into()));
+        }
+        Ok(r)
+    }
+
+    /// The position at `t`, linearly interpolated; None outside the track or across a gap of
+    /// more than `max_gap_s` between rows.
+    pub fn at(&self, t: f64, max_gap_s: f64) -> Option<[f64; 3]> {
+        let (first, last) = (*self.t.first()?, *self.t.last()?);
+        if !(first..=last).contains(&t) || self.t.len() < 2 {
+            return None;
+        }
+        let i = self.t.partition_point(|&x| x <= t).clamp(1, self.t.len() - 1);
+        let (t0, t1) = (self.t[i - 1], self.t[i]);
+        if t1 - t0 > max_gap_s {
+            return None;
+        }
+        let w = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+        let (a, b) = (self.position[i - 1], self.position[i]);
+        Some([0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * w))
+    }
+}
+
+/// Largest gap between reference rows a frame may fall in, s.
+pub const MAX_REFERENCE_GAP_S: f64 = 1.0;
+
+/// Whether the segment from `a` to `b` passes through the box `[min, max]` (slab test).
+fn crosses(a: [f64; 3], b: [f64; 3], min: [f64; 3], max: [f64; 3]) -> bool {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..3 {
+        let d = b[k] - a[k];
+        if d.abs() < 1e-12 {
+            if a[k] < min[k] || a[k] > max[k] {
+                return false;
+            }
+            continue;
+        }
+        let (u, v) = ((min[k] - a[k]) / d, (max[k] - a[k]) / d);
+        t0 = t0.max(u.min(v));
+        t1 = t1.min(u.max(v));
+        if t0 > t1 {
+            return false;
+        }
+    }
+    true
+}
+
+/// Each bearing against the reference position at its time, in its array's frame, with the
+/// array id. Left out: bearings outside the reference, of an array not in `site`, of a source
+/// within 0.3 m of the array (no direction), or whose straight path to the array crosses one
+/// of the site's `obstacles` (an obstacle's shadow is not the room's image).
+pub fn pairs(
+    site: &Site,
+    obstacles: &[crate::site::SiteObstacle],
+    bearings: &[Bearing],
+    reference: &Reference,
+) -> Vec<(u16, Pair)> {
+    let mut out = Vec::new();
+    for b in bearings {
+        let Some(pose) = site.array(b.array_id) else { continue };
+        let Some(p) = reference.at(b.t, MAX_REFERENCE_GAP_S) else { continue };
+        if obstacles.iter().any(|o| crosses(pose.position, p, o.min, o.max)) {
+            continue;
+        }
+        let world = [0, 1, 2].map(|k| p[k] - pose.position[k]);
+        let v = pose.to_array(world);
+        let r = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        if r < 0.3 {
+            continue;
+        }
+        let pair = Pair {
+            measured_rad: b.zenith_rad,
+            true_rad: (v[2] / r).clamp(-1.0, 1.0).acos(),
+            height_m: v[2],
+        };
+        out.push((b.array_id, pair));
+    }
+    out
+}
+
+/// The bearings a recording of frames gives, through the intake every tracking path uses
+/// ([`crate::intake::Intake`], frames in link order), with every array's correction removed
+/// first so that the fit sees the zenith as measured.
+pub fn bearings_of<R: std::io::Read>(
+    site: &Site,
+    source: &mut crate::link::FrameSource<R>,
+) -> anyhow::Result<Vec<Bearing>> {
+    use crate::intake::{Intake, IntakeConfig, Released};
+    use crate::observation::Input;
+    let mut raw = site.clone();
+    for a in &mut raw.arrays {
+        a.zenith_correction = ZenithCorrection::default();
+    }
+    let mut intake = Intake::new(raw, IntakeConfig::default());
+    let mut out = Vec::new();
+    let mut sink = |r: Released| {
+        if let Released::Input(Input::Bearing(b)) = r {
+            out.push(b);
+        }
+    };
+    for frame in source.by_ref() {
+        let frame = frame?;
+        intake.push(&frame, &mut sink)?;
+    }
+    intake.finish(&mut sink);
+    Ok(out)
+}
+
+/// Fits every array of `site` that has bearings in `bearings` against `reference`, leaving out
+/// what `obstacles` hide.
+pub fn calibrate(
+    site: &Site,
+    obstacles: &[crate::site::SiteObstacle],
+    bearings: &[Bearing],
+    reference: &Reference,
+    config: FitConfig,
+) -> Vec<Fit> {
+    let all = pairs(site, obstacles, bearings, reference);
+    site.arrays
+        .iter()
+        .filter_map(|a| {
+            let mine: Vec<Pair> = all.iter().filter(|p| p.0 == a.id).map(|p| p.1).collect();
+            (!mine.is_empty()).then(|| fit(a.id, &mine, config))
+        })
+        .collect()
+}
+
+/// Site file text with every `zenith_correction_deg` line taken out (each on one line, as
+/// [`site_with_corrections`] writes it), checked by reading it back.
+pub fn site_without_corrections(text: &str, path: &Path) -> Result<String, ConfigError> {
+    let kept: Vec<&str> =
+        text.lines().filter(|l| !l.trim_start().starts_with("zenith_correction_deg")).collect();
+    let mut out = kept.join("\n");
+    out.push('\n');
+    let site = Site::parse(&out, path)?;
+    if site.arrays.iter().any(|a| !a.zenith_correction.is_empty()) {
+        return Err(ConfigError {
+            path: path.to_path_buf(),
+            line: None,
+            message: "a zenith_correction_deg is left (over several lines?)".into(),
+        });
+    }
+    Ok(out)
+}
+
+/// Site file text with each given array's `zenith_correction_deg` line set (replacing the one
+/// it had; other lines, comments included, stay as they were), checked by reading it back:
+/// every array parses and carries the correction written (at the line's 0.01°).
+pub fn site_with_corrections(
+    text: &str,
+    path: &Path,
+    corrections: &[(u16, ZenithCorrection)],
+) -> Result<String, ConfigError> {
+    let err = |line: Option<usize>, message: String| ConfigError {
+        path: path.to_path_buf(),
+        line,
+        message,
+    };
+    let lines: Vec<&str> = text.lines().collect();
+    let header = |l: &str| l.trim_start().starts_with('[');
+    let mut out: Vec<String> = Vec::with_capacity(lines.len() + corrections.len());
+    let mut written = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        if lines[i].trim() != "[[array]]" {
+            out.push(lines[i].to_string());
+            i += 1;
+            continue;
+        }
+        let end = (i + 1..lines.len()).find(|&j| header(lines[j])).unwrap_or(lines.len());
+        let id = lines[i + 1..end].iter().find_map(|l| {
+            let (k, v) = l.split_once('=')?;
+            (k.trim() == "id").then(|| v.split('#').next()?.trim().parse::<u16>().ok())?
+        });
+        let new = id.and_then(|id| corrections.iter().find(|c| c.0 == id));
+        let mut block: Vec<String> = Vec::new();
+        for (j, l) in lines.iter().enumerate().take(end).skip(i) {
+            let is_old = l.trim_start().starts_with("zenith_correction_deg");
+            if is_old && new.is_some() {
+                if !l.split('#').next().unwrap_or("").trim_end().ends_with("]]") {
+                    return Err(err(
+                        Some(j + 1),
+                        "a zenith_correction_deg over several lines: put it on one line or \
+                         remove it before calibrating"
+                            .into(),
+                    ));
+                }
+                continue;
+            }
+            block.push(l.to_string());
+        }
+        if let Some((id, c)) = new {
+            let last = block.iter().rposition(|l| !l.trim().is_empty()).unwrap_or(0);
+            block.insert(last + 1, c.to_toml_line());
+            written.push(*id);
+        }
+        out.extend(block);
+        i = end;
+    }
+    if let Some((id, _)) = corrections.iter().find(|c| !written.contains(&c.0)) {
+        return Err(err(None, format!("no [[array]] with id = {id} to calibrate")));
+    }
+    let mut result = out.join("\n");
+    result.push('\n');
+    let site = Site::parse(&result, path)?;
+    for (id, c) in corrections {
+        let got = site.array(*id).map(|a| a.zenith_correction.to_toml_line());
+        if got.as_deref() != Some(c.to_toml_line().as_str()) {
+            return Err(err(None, format!("array {id}: the correction did not read back")));
+        }
+    }
+    Ok(result)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_bias_is_interpolated_and_held_beyond_the_ends() {
+        let c = ZenithCorrection::from_degrees(&[[30.0, -1.0], [70.0, -5.0]]).unwrap();
+        let deg = |z: f64| c.bias(z.to_radians()).to_degrees();
+        assert!((deg(50.0) + 3.0).abs() < 1e-9);
+        assert!((deg(10.0) + 1.0).abs() < 1e-9 && (deg(85.0) + 5.0).abs() < 1e-9);
+        assert!((c.correct(70f64.to_radians()).to_degrees() - 75.0).abs() < 1e-9);
+        assert_eq!(ZenithCorrection::default().correct(0.7), 0.7);
+    }
+
+    #[test]
+    fn a_bad_point_is_named() {
+        let e = ZenithCorrection::from_degrees(&[[30.0, -1.0], [30.0, -2.0]]).unwrap_err();
+        assert!(e.contains("point 2") && e.contains("above"), "{e}");
+        let e = ZenithCorrection::from_degrees(&[[30.0, 45.0]]).unwrap_err();
+        assert!(e.contains("bias 45"), "{e}");
+        let e = ZenithCorrection::from_degrees(&[[f64::NAN, 0.0]]).unwrap_err();
+        assert!(e.contains("point 1"), "{e}");
+    }
+
+    /// The oracle: frames whose measured zenith is the true one plus a known bias curve, noise
+    /// and outliers; the fit recovers the curve within a tenth of a degree where frames are.
+    #[test]
+    fn the_fit_recovers_a_known_bias_despite_outliers() {
+        let truth_bias = |z_true_deg: f64| -0.1 * (z_true_deg - 20.0).max(0.0);
+        let mut pairs = Vec::new();
+        let mut state = 12345u64;
+        let mut uniform = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for k in 0..20_000 {
+            let z = 10.0 + 75.0 * uniform();
+            let noise = 0.5 * (uniform() - 0.5);
+            let outlier = if k % 10 == 0 { 25.0 * (uniform() - 0.5) } else { 0.0 };
+            let measured = z + truth_bias(z) + noise + outlier;
+            pairs.push(Pair {
+                measured_rad: measured.to_radians(),
+                true_rad: z.to_radians(),
+                height_m: 2.0,
+            });
+        }
+        let f = fit(1, &pairs, FitConfig::default());
+        assert!(f.correction.to_degrees().len() >= 12, "{:?}", f.bins);
+        for p in f.correction.to_degrees() {
+            if !(25.0..=75.0).contains(&p[0]) {
+                continue;
+            }
+            // The measured zenith m = z − 0.1 (z − 20) for z > 20: z = (m − 2) / 0.9.
+            let z = (p[0] - 2.0) / 0.9;
+            let want = p[0] - z;
+            assert!((p[1] - want).abs() < 0.1, "at {}: {} against {want}", p[0], p[1]);
+        }
+        // Corrected, a measurement lands on its truth.
+        let m = 60.0 + truth_bias(60.0);
+        assert!((f.correction.correct(m.to_radians()).to_degrees() - 60.0).abs() < 0.15);
+    }
+
+    #[test]
+    fn a_bin_with_too_few_frames_or_too_wide_a_spread_gives_no_point() {
+        let pair = |z: f64, e: f64| Pair {
+            measured_rad: (z + e).to_radians(),
+            true_rad: z.to_radians(),
+            height_m: 2.0,
+        };
+        let mut pairs: Vec<Pair> = (0..25).map(|_| pair(43.0, -2.0)).collect();
+        pairs.extend((0..25).map(|_| pair(54.0, -3.0)));
+        pairs.extend((0..5).map(|_| pair(65.0, -4.0)));
+        // One measured zenith standing for true zeniths 4° either side of it: too wide.
+        pairs.extend((0..30).map(|k| if k % 2 == 0 { pair(74.0, 4.0) } else { pair(82.0, -4.0) }));
+        let f = fit(1, &pairs, FitConfig::default());
+        assert_eq!(f.bins.len(), 4, "{:?}", f.bins);
+        let pts = f.correction.to_degrees();
+        let want = [[42.5, -2.0], [52.5, -3.0]];
+        assert_eq!(pts.len(), 2, "{pts:?}");
+        assert!(pts.iter().zip(want).all(|(p, w)| (0..2).all(|k| (p[k] - w[k]).abs() < 1e-9)));
+    }
+
+    #[test]
+    fn a_path_through_an_obstacle_is_left_out() {
+        let (min, max) = ([4.0, -1.0, 0.0], [5.0, 1.0, 2.0]);
+        assert!(crosses([0.0, 0.0, 0.05], [8.0, 0.0, 1.5], min, max));
+        assert!(!crosses([0.0, 0.0, 0.05], [8.0, 0.0, 5.0], min, max), "above it");
+        assert!(!crosses([0.0, 0.0, 0.05], [3.0, 0.0, 1.5], min, max), "short of it");
+        assert!(!crosses([0.0, 0.0, 0.05], [0.0, 8.0, 1.5], min, max), "beside it");
+    }
+
+    #[test]
+    fn a_reference_is_read_by_its_header_and_its_errors_name_the_line() {
+        let p = Path::new("ref.csv");
+        let r = Reference::parse("t,x,y,z,extra\n0,0,0,1,a\n1,2,0,1,b\n", p).unwrap();
+        assert_eq!(r.at(0.5, 2.0), Some([1.0, 0.0, 1.0]));
+        assert_eq!(r.at(1.5, 2.0), None);
+        assert_eq!(r.at(0.5, 0.5), None, "a gap longer than allowed");
+        let e = Reference::parse("t,x,y\n0,0,0\n", p).unwrap_err().to_string();
+        assert!(e.contains("ref.csv:1") && e.contains("`z`"), "{e}");
+        let e = Reference::parse("t,x,y,z\n0,0,0,1\n1,0,zz,1\n", p).unwrap_err().to_string();
+        assert!(e.contains("ref.csv:3") && e.contains("zz"), "{e}");
+        let e = Reference::parse("t,x,y,z\n1,0,0,1\n1,0,0,1\n", p).unwrap_err().to_string();
+        assert!(e.contains("ref.csv:3") && e.contains("not after"), "{e}");
+    }
+
+    #[test]
+    fn a_site_gets_its_corrections_and_keeps_the_rest() {
+        let text = "# a site\nsample_rate_hz = 48000\n\n[[array]]\nid = 1\nposition = [0.0, 0.0, 0.05]\nzenith_correction_deg = [[10.0, 1.0]]\n\n[[array]]\nid = 2 # east\nposition = [5.0, 0.0, 0.05]\n\n[room]\nsize = [10.0, 10.0, 4.0]\n";
+        let p = Path::new("site.toml");
+        let c1 = ZenithCorrection::from_degrees(&[[30.0, -1.0], [70.0, -5.0]]).unwrap();
+        let c2 = ZenithCorrection::from_degrees(&[[50.0, -2.5]]).unwrap();
+        let out = site_with_corrections(text, p, &[(1, c1.clone()), (2, c2.clone())]).unwrap();
+        let site = Site::parse(&out, p).unwrap();
+        assert_eq!(site.array(1).unwrap().zenith_correction, c1);
+        assert_eq!(site.array(2).unwrap().zenith_correction, c2);
+        assert!(out.starts_with("# a site\n") && out.contains("id = 2 # east"), "{out}");
+        assert_eq!(out.matches("zenith_correction_deg").count(), 2, "{out}");
+        assert!(out.contains("zenith_correction_deg = [[30.00, -1.00], [70.00, -5.00]]"));
+        let e = site_with_corrections(text, p, &[(3, c1)]).unwrap_err().to_string();
+        assert!(e.contains("id = 3"), "{e}");
+        // A bad correction in a site file is reported at its line.
+        let bad = text.replace("[[10.0, 1.0]]", "[[10.0, 1.0], [5.0, 1.0]]");
+        let e = Site::parse(&bad, p).unwrap_err().to_string();
+        assert!(e.contains("site.toml:7") && e.contains("point 2"), "{e}");
+        // And taken out again.
+        let bare = site_without_corrections(&out, p).unwrap();
+        assert!(!bare.contains("zenith_correction_deg") && bare.contains("id = 2 # east"));
+    }
+}
