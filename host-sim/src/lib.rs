@@ -40,6 +40,7 @@ pub mod roomnoise;
 pub mod scenario;
 pub mod site;
 pub mod sound;
+pub mod survey;
 pub mod tonal;
 pub mod truth;
 pub mod wav;

@@ -16,6 +16,10 @@
 //!                                    #  the profile of the type the classifier recognises]
 //! fuse_arrays = true                 # [true] with several arrays, all tracked together;
 //!                                    #  false: the first array's recording alone
+//! zenith_survey_seed = 7             # [none] calibrate each family's arrays' zenith first:
+//!                                    #  its room's survey flight (host_sim::survey) with this
+//!                                    #  seed, fitted as `aim calibrate` does, into every run's
+//!                                    #  site file (stored under DIR/zenith-survey/<family>/)
 //! [airframe]                         # the population every run draws its airframe from
 //! wake_spread = 0.3                  # (keys of a scenario's [airframe]; merged over each file's)
 //!
@@ -48,6 +52,7 @@ use serde::Deserialize;
 
 use aim_tracker::filter::FilterKind;
 use aim_tracker::profile::Profile;
+use aim_tracker::zenith::ZenithCorrection;
 use host_sim::eval::metrics::Summary;
 use host_sim::scenario::Scenario;
 
@@ -74,6 +79,10 @@ pub struct Args {
     /// directory (`FROM/runs/<family>/seed-<n>/`) and score them again.
     #[arg(long, value_name = "FROM")]
     rescore: Option<PathBuf>,
+    /// Track without the suite's zenith calibration (`zenith_survey_seed`), for comparison:
+    /// with `--rescore`, also without the one the stored runs' site files carry.
+    #[arg(long)]
+    no_zenith_survey: bool,
 }
 
 #[derive(Deserialize)]
@@ -87,6 +96,7 @@ struct SuiteFile {
     period_s: Option<f64>,
     profile: Option<PathBuf>,
     fuse_arrays: Option<bool>,
+    zenith_survey_seed: Option<u64>,
     #[serde(default)]
     airframe: toml::Table,
     family: Vec<FamilyFile>,
@@ -136,6 +146,9 @@ pub struct Suite {
     /// With several arrays, every array's recording is tracked, their bearings fused
     /// (default); false: the first array's alone.
     pub fuse_arrays: bool,
+    /// Seed of each family's zenith survey (`host_sim::survey`), whose fitted corrections go
+    /// into every run's site file; None: no zenith calibration.
+    pub zenith_survey_seed: Option<u64>,
     /// The families.
     pub families: Vec<Family>,
 }
@@ -262,6 +275,7 @@ impl Suite {
             period_s,
             profile,
             fuse_arrays: f.fuse_arrays.unwrap_or(true),
+            zenith_survey_seed: f.zenith_survey_seed,
             families,
         })
     }
@@ -442,6 +456,58 @@ fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (S
     (csv, md)
 }
 
+/// Each family's zenith corrections from its survey (`suite.zenith_survey_seed`), by family
+/// name: re-fitted from `FROM/zenith-survey/<family>/` when re-scoring a bench that stored one,
+/// simulated otherwise (`threads` families at once), and stored under
+/// `DIR/zenith-survey/<family>/`. Empty without a seed or with `--no-zenith-survey`.
+fn zenith_surveys(
+    suite: &Suite,
+    families: &[&Family],
+    args: &Args,
+    threads: usize,
+) -> anyhow::Result<std::collections::HashMap<String, Vec<(u16, ZenithCorrection)>>> {
+    let mut out = std::collections::HashMap::new();
+    let Some(seed) = suite.zenith_survey_seed.filter(|_| !args.no_zenith_survey) else {
+        return Ok(out);
+    };
+    let progress = host_sim::progress_bar(&format!("zenith surveys (seed {seed})"));
+    progress.set_length(families.len() as u64);
+    let next = AtomicUsize::new(0);
+    let done: Mutex<Vec<(String, anyhow::Result<host_sim::survey::Survey>)>> =
+        Mutex::new(Vec::new());
+    std::thread::scope(|s| {
+        for _ in 0..threads.clamp(1, families.len().max(1)) {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(fam) = families.get(i) else { break };
+                let stored = args
+                    .rescore
+                    .as_ref()
+                    .map(|from| from.join("zenith-survey").join(&fam.name))
+                    .filter(|d| d.join("truth.csv").is_file());
+                let survey = match stored {
+                    Some(dir) => host_sim::survey::Survey::load(&dir),
+                    None => Scenario::load_with(&fam.scenario, seed, &fam.overrides)
+                        .and_then(|sc| host_sim::survey::calibrate(&sc, seed, 1)),
+                };
+                let survey = survey.and_then(|sv| {
+                    let dir = args.out.join("zenith-survey").join(&fam.name);
+                    super::fly::store_survey(&dir, &sv)?;
+                    Ok(sv)
+                });
+                done.lock().expect("no panic holds it").push((fam.name.clone(), survey));
+                progress.inc(1);
+            });
+        }
+    });
+    progress.finish_and_clear();
+    for (name, survey) in done.into_inner().expect("no panic holds it") {
+        let survey = survey.with_context(|| format!("the zenith survey of family `{name}`"))?;
+        out.insert(name, survey.corrections());
+    }
+    Ok(out)
+}
+
 /// Where a run of `family` and `seed` keeps its recording and results, under `--out`.
 fn run_dir(family: &Family, seed: u64) -> PathBuf {
     Path::new("runs").join(&family.name).join(format!("seed-{seed}"))
@@ -511,6 +577,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     .clamp(1, jobs.len().max(1));
 
+    let surveys = zenith_surveys(&suite, &families, &args, threads)?;
+
     let progress = host_sim::progress_bar(&format!("bench {} runs", jobs.len()));
     progress.set_length(jobs.len() as u64);
     let next = AtomicUsize::new(0);
@@ -529,6 +597,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             period: suite.period_s,
             choose_profile: choose,
             fuse_arrays: suite.fuse_arrays,
+            zenith: surveys.get(&fam.name).map_or(&[], Vec::as_slice),
+            strip_zenith: args.no_zenith_survey,
         };
         let runs = if let Some(from) = &args.rescore {
             let recorded = Recorded::load(&from.join(&run_dir))?;

@@ -58,6 +58,12 @@ pub struct Args {
     /// host receives them, each array's bearings in the filter).
     #[arg(long)]
     no_fuse: bool,
+    /// First fly the site's zenith calibration survey (`host_sim::survey`: spokes out from
+    /// each array and back, at 1 and 2.5 m, in this room) with this seed, fit each array's
+    /// `zenith_correction_deg` from its frames and truth as `aim calibrate` does, and track with
+    /// it. The survey's files go to `OUT/zenith-survey/`.
+    #[arg(long, value_name = "SEED")]
+    zenith_survey: Option<u64>,
 }
 
 /// How the recordings of a run are tracked (shared by `fly` and `bench`).
@@ -73,6 +79,12 @@ pub(crate) struct Tracking<'a> {
     /// Every array's recording, merged ([`aim_tracker::link::Merged`]), and their bearings
     /// fused ([`TrackerConfig::fuse_arrays`]); false: the tracked array's recording alone.
     pub fuse_arrays: bool,
+    /// The site's calibration of each array's zenith (a survey's, [`host_sim::survey`]),
+    /// written into the site file the tracker reads; empty: the site file's own.
+    pub zenith: &'a [(u16, aim_tracker::zenith::ZenithCorrection)],
+    /// Take every zenith correction out of the site file first (a re-score without the
+    /// calibration of runs that were tracked with one).
+    pub strip_zenith: bool,
 }
 
 /// What one tracker run gave.
@@ -117,6 +129,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => Profile::dji_mini_2(),
     };
 
+    let zenith = match args.zenith_survey {
+        Some(seed) => {
+            let progress = host_sim::progress_bar("zenith survey");
+            let survey = host_sim::survey::calibrate(&scenario, seed, args.threads)
+                .with_context(|| format!("{}: the zenith survey", args.scenario.display()))?;
+            progress.finish_and_clear();
+            let dir = out.join("zenith-survey");
+            store_survey(&dir, &survey)?;
+            for f in &survey.fits {
+                eprintln!(
+                    "zenith survey: array {}: {} frames, {} points ({})",
+                    f.array_id,
+                    f.frames,
+                    f.correction.to_degrees().len(),
+                    dir.display()
+                );
+            }
+            survey.corrections()
+        }
+        None => Vec::new(),
+    };
+
     // The audio goes through every array's pipeline as it is rendered (never held whole).
     let progress = host_sim::progress_bar("simulating");
     let (sim, links) = link::simulate_links(
@@ -133,6 +167,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         period: args.period,
         choose_profile: args.profile.is_none(),
         fuse_arrays: !args.no_fuse,
+        zenith: &zenith,
+        strip_zenith: false,
     };
     let runs = track(&sim, &links, &out, &tracking)?;
     for r in &runs {
@@ -174,9 +210,10 @@ pub(crate) fn track(
     out: &Path,
     how: &Tracking,
 ) -> anyhow::Result<Vec<TrackRun>> {
-    // The tracker reads the site file the simulator writes, as `aim replay` would.
-    let site_text = sim.site.to_toml()?;
+    // The tracker reads the site file the simulator writes, as `aim replay` would (with the
+    // site's zenith calibration, when it has one).
     let site_path = out.join("site.toml");
+    let site_text = calibrated(sim.site.to_toml()?, &site_path, how)?;
     std::fs::write(&site_path, &site_text)
         .with_context(|| format!("writing {}", site_path.display()))?;
     std::fs::write(out.join("truth.csv"), sim.truth.to_csv()).context("writing truth.csv")?;
@@ -193,6 +230,42 @@ pub(crate) fn track(
     let recorded =
         Recorded { site_text, site: sim.site.clone(), truth: sim.truth.clone(), raw_paths };
     track_recorded(&recorded, out, how)
+}
+
+/// Stores a zenith survey in `dir`: its site file, truth (the reference), each array's frames
+/// (`frames-<id>.aimraw`, in scenario order) and the calibrated site file `site-calibrated.toml`:
+/// `aim calibrate frames-<id>.aimraw --reference truth.csv --site site.toml` gives the same.
+pub(crate) fn store_survey(dir: &Path, survey: &host_sim::survey::Survey) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let write = |name: &str, bytes: &[u8]| {
+        std::fs::write(dir.join(name), bytes)
+            .with_context(|| format!("writing {}", dir.join(name).display()))
+    };
+    write("site.toml", survey.site_text.as_bytes())?;
+    write("truth.csv", survey.truth_csv.as_bytes())?;
+    for (id, bytes) in survey.array_ids.iter().zip(&survey.links) {
+        write(&format!("frames-{id}.aimraw"), bytes)?;
+    }
+    let calibrated = aim_tracker::zenith::site_with_corrections(
+        &survey.site_text,
+        &dir.join("site.toml"),
+        &survey.corrections(),
+    )?;
+    write("site-calibrated.toml", calibrated.as_bytes())
+}
+
+/// The site file's text with `how.zenith`'s corrections (without any: its own, or none with
+/// `how.strip_zenith`).
+fn calibrated(text: String, path: &Path, how: &Tracking) -> anyhow::Result<String> {
+    let text = if how.strip_zenith {
+        aim_tracker::zenith::site_without_corrections(&text, path)?
+    } else {
+        text
+    };
+    if how.zenith.is_empty() {
+        return Ok(text);
+    }
+    Ok(aim_tracker::zenith::site_with_corrections(&text, path, how.zenith)?)
 }
 
 /// A run as `fly` leaves it on disk: the site file's text and content, the truth, and each
@@ -254,8 +327,14 @@ pub(crate) fn track_recorded(
     how: &Tracking,
 ) -> anyhow::Result<Vec<TrackRun>> {
     let (profile, period) = (how.profile, how.period);
-    let site = aim_tracker::site::Site::parse(&rec.site_text, &out.join("site.toml"))?;
-    let sync = aim_tracker::site::SiteSync::parse(&rec.site_text, &out.join("site.toml"))?;
+    let site_path = out.join("site.toml");
+    let site_text = calibrated(rec.site_text.clone(), &site_path, how)?;
+    if !how.zenith.is_empty() || how.strip_zenith {
+        std::fs::write(&site_path, &site_text)
+            .with_context(|| format!("writing {}", site_path.display()))?;
+    }
+    let site = aim_tracker::site::Site::parse(&site_text, &site_path)?;
+    let sync = aim_tracker::site::SiteSync::parse(&site_text, &site_path)?;
     // The drone classifier `aim replay` runs by default (the bundled model); the profile
     // follows the recognised type only when none was given, as there. Read once for every
     // filter.
