@@ -2,8 +2,8 @@
 //! calibrate the arrays' zenith (`aim calibrate`, [`aim_tracker::zenith`]).
 //!
 //! The same room, arrays, obstacles, noise and drone as the scenario; only the flight is
-//! replaced: from each array, straight spokes out to the room's walls (1 m short of them, at
-//! most [`SPOKE_MAX_M`]) and back, every 45° of azimuth, at two heights
+//! replaced: from each array, straight spokes out to the room's walls (ending 1 m short of the
+//! wall along the spoke, at most [`SPOKE_MAX_M`] long) and back, every 45° of azimuth, at two heights
 //! ([`SURVEY_HEIGHTS_M`], lowered under a low ceiling), at [`SURVEY_SPEED_MPS`]. It covers the
 //! zeniths a drone is seen at in that room without following any flight the tracker is later
 //! scored on. [`calibrate`] simulates it with a seed of its own and fits the arrays'
@@ -192,13 +192,15 @@ mod tests {
         .unwrap();
         let w = waypoints(&s);
         let room = s.room.as_ref().unwrap().size_m;
-        assert!(w.iter().all(|p| {
-            (WALL_MARGIN_M - 1e-9..=room[0] - WALL_MARGIN_M + 1e-9).contains(&p.x)
-                && (WALL_MARGIN_M - 1e-9..=room[1] - WALL_MARGIN_M + 1e-9).contains(&p.y)
-        }));
-        // The array sits 2 m from the south wall: only the four northward spokes, 3 points
-        // each, at two heights.
-        assert_eq!(w.len(), 4 * 3 * 2, "{w:?}");
+        // The margin is along each spoke, whose azimuths are 22.5° off an axis at least: a
+        // wall is at least WALL_MARGIN_M · cos 67.5° away across.
+        let m = WALL_MARGIN_M * 67.5f64.to_radians().cos() - 1e-9;
+        assert!(w
+            .iter()
+            .all(|p| { (m..=room[0] - m).contains(&p.x) && (m..=room[1] - m).contains(&p.y) }));
+        // The array sits 2 m from the south wall: the two spokes straight at it (247.5° and
+        // 292.5°) are too short; the six others, 3 points each, at two heights.
+        assert_eq!(w.len(), 6 * 3 * 2, "{w:?}");
         let a = s.arrays[0].position_m;
         let far = w.iter().map(|p| (p.x - a.x).hypot(p.y - a.y)).fold(0.0, f64::max);
         assert!((far - SPOKE_MAX_M).abs() < 1e-9, "{far}");
