@@ -283,7 +283,7 @@ struct ArrayEntry {
     positions: Option<toml::Spanned<Vec<[f64; 2]>>>,
     clock_offset_s: Option<toml::Spanned<f64>>,
     clock_drift_ppm: Option<toml::Spanned<f64>>,
-    zenith_correction_deg: Option<toml::Spanned<Vec<[f64; 2]>>>,
+    zenith_correction_deg: Option<toml::Spanned<Vec<Vec<f64>>>>,
 }
 
 #[derive(Deserialize)]
@@ -490,8 +490,21 @@ fn array_pose(
     pose.clock_offset_s = offset;
     pose.clock_drift_ppm = drift;
     if let Some(c) = &a.zenith_correction_deg {
-        pose.zenith_correction = crate::zenith::ZenithCorrection::from_degrees(c.get_ref())
-            .map_err(|e| err(c.span(), format!("array {id}: zenith_correction_deg: {e}")))?;
+        let bad = |e: String| err(c.span(), format!("array {id}: zenith_correction_deg: {e}"));
+        // Each point exactly [measured zenith, bias]: a third number is a mistake, not extra.
+        let points = c
+            .get_ref()
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                <[f64; 2]>::try_from(p.as_slice()).map_err(|_| {
+                    format!("point {}: give [zenith, bias], two numbers (got {})", k + 1, p.len())
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(bad)?;
+        pose.zenith_correction =
+            crate::zenith::ZenithCorrection::from_degrees(&points).map_err(bad)?;
     }
     Ok(pose)
 }

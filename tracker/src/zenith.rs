@@ -597,6 +597,9 @@ mod tests {
         let bad = text.replace("[[10.0, 1.0]]", "[[10.0, 1.0], [5.0, 1.0]]");
         let e = Site::parse(&bad, p).unwrap_err().to_string();
         assert!(e.contains("site.toml:7") && e.contains("point 2"), "{e}");
+        let bad = text.replace("[[10.0, 1.0]]", "[[10.0, 1.0, 2.0]]");
+        let e = Site::parse(&bad, p).unwrap_err().to_string();
+        assert!(e.contains("site.toml:7") && e.contains("two numbers (got 3)"), "{e}");
         // And taken out again.
         let bare = site_without_corrections(&out, p).unwrap();
         assert!(!bare.contains("zenith_correction_deg") && bare.contains("id = 2 # east"));
