@@ -98,9 +98,17 @@ impl ZenithCorrection {
         }
     }
 
-    /// A measured zenith, rad, corrected: the measurement minus its bias.
+    /// A measured zenith, rad, corrected: the measurement minus its bias, kept on the side of
+    /// the array's plane it was measured on (0–90° stays within 0–90°, 90–180° within
+    /// 90–180°): a correction does not turn a direction over.
     pub fn correct(&self, zenith_rad: f64) -> f64 {
-        zenith_rad - self.bias(zenith_rad)
+        use std::f64::consts::{FRAC_PI_2, PI};
+        let z = zenith_rad - self.bias(zenith_rad);
+        if zenith_rad <= FRAC_PI_2 {
+            z.clamp(0.0, FRAC_PI_2)
+        } else {
+            z.clamp(FRAC_PI_2, PI)
+        }
     }
 
     /// The site file's line for this correction (`zenith_correction_deg = [...]`), at 0.01°.
@@ -122,6 +130,23 @@ pub struct Bin {
     pub median_deg: f64,
     /// Median absolute deviation of (measured − true) around that median, degrees.
     pub mad_deg: f64,
+}
+
+impl Bin {
+    /// Why this bin gives no point of the correction under `config`, or None when it gives one.
+    pub fn no_point(&self, config: &FitConfig) -> Option<&'static str> {
+        if self.frames < config.min_frames.max(1) {
+            Some("too few frames")
+        } else if self.mad_deg.is_nan() || self.mad_deg > config.max_mad_deg {
+            Some("too wide a spread")
+        } else if !(-MAX_BIAS_DEG..=MAX_BIAS_DEG).contains(&self.median_deg) {
+            Some("a bias beyond ±30°: not the room's image (a wrong reference or site file?)")
+        } else if !(0.0..=180.0).contains(&self.centre_deg) {
+            Some("outside 0–180°")
+        } else {
+            None
+        }
+    }
 }
 
 /// How [`fit`] bins the frames.
@@ -152,7 +177,7 @@ pub struct Fit {
     /// The correction (bins with at least `min_frames` frames and a narrow spread, at their
     /// centres).
     pub correction: ZenithCorrection,
-    /// Every bin that had a frame, by layer and zenith.
+    /// Every bin that had a frame, by measured zenith.
     pub bins: Vec<Bin>,
     /// Frames used (with a reference position in line of sight).
     pub frames: usize,
@@ -164,16 +189,16 @@ fn median(v: &mut [f64]) -> f64 {
     crate::iqr::quantile_sorted(v, 0.5)
 }
 
-/// One frame against the reference: measured and true zenith, rad, and the source's height
-/// above the array along its normal, m.
+/// One frame against the reference: measured and true zenith, and the azimuth's error, rad.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Pair {
     /// Zenith the array measured, rad.
     pub measured_rad: f64,
     /// Zenith of the reference position, rad.
     pub true_rad: f64,
-    /// Height of the reference position above the array along its normal, m.
-    pub height_m: f64,
+    /// Measured − reference azimuth, wrapped to ±π, rad (never corrected: it checks that the
+    /// reference and the frames agree, [`time_check`]).
+    pub azimuth_error_rad: f64,
 }
 
 /// Fits one array's correction: per bin of the measured zenith, the median of (measured −
@@ -201,10 +226,14 @@ pub fn fit(array_id: u16, pairs: &[Pair], config: FitConfig) -> Fit {
     }
     let points: Vec<[f64; 2]> = out
         .iter()
-        .filter(|b| b.frames >= config.min_frames.max(1) && b.mad_deg <= config.max_mad_deg)
-        .map(|b| [b.centre_deg, b.median_deg.clamp(-MAX_BIAS_DEG, MAX_BIAS_DEG)])
+        .filter(|b| b.no_point(&config).is_none())
+        .map(|b| [b.centre_deg, b.median_deg])
         .collect();
-    let correction = ZenithCorrection::from_degrees(&points).unwrap_or_default();
+    // The bins come in ascending order and `no_point` refuses what `from_degrees` would.
+    let correction = match ZenithCorrection::from_degrees(&points) {
+        Ok(c) => c,
+        Err(e) => unreachable!("a point no_point let through: {e}"),
+    };
     Fit { array_id, correction, bins: out, frames: pairs.len() }
 }
 
@@ -228,11 +257,13 @@ impl Reference {
             line: Some(line),
             message,
         };
+        // A spreadsheet's byte-order mark is not part of the first column's name.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
         let Some((h, header)) = lines.next() else {
             return Err(err(1, "empty: a header `t,x,y,z` and rows are needed".into()));
         };
-        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let names: Vec<&str> = header.split(',').map(|n| n.trim().trim_matches('"')).collect();
         let col = |name: &str| {
             names.iter().position(|n| *n == name).ok_or_else(|| {
                 err(h + 1, format!("the header has no column `{name}` (it needs t, x, y, z)"))
@@ -328,10 +359,11 @@ pub fn pairs(
         if r < 0.3 {
             continue;
         }
+        let az_error = b.azimuth_rad - v[1].atan2(v[0]);
         let pair = Pair {
             measured_rad: b.zenith_rad,
             true_rad: (v[2] / r).clamp(-1.0, 1.0).acos(),
-            height_m: v[2],
+            azimuth_error_rad: az_error.sin().atan2(az_error.cos()),
         };
         out.push((b.array_id, pair));
     }
@@ -340,11 +372,12 @@ pub fn pairs(
 
 /// The bearings a recording of frames gives, through the intake every tracking path uses
 /// ([`crate::intake::Intake`], frames in link order), with every array's correction removed
-/// first so that the fit sees the zenith as measured.
+/// first so that the fit sees the zenith as measured; and the intake's counts (frames read,
+/// frames of arrays the site does not have, ...), which say why there are none.
 pub fn bearings_of<R: std::io::Read>(
     site: &Site,
     source: &mut crate::link::FrameSource<R>,
-) -> anyhow::Result<Vec<Bearing>> {
+) -> anyhow::Result<(Vec<Bearing>, crate::intake::IntakeStats)> {
     use crate::intake::{Intake, IntakeConfig, Released};
     use crate::observation::Input;
     let mut raw = site.clone();
@@ -363,7 +396,7 @@ pub fn bearings_of<R: std::io::Read>(
         intake.push(&frame, &mut sink)?;
     }
     intake.finish(&mut sink);
-    Ok(out)
+    Ok((out, *intake.stats()))
 }
 
 /// Fits every array of `site` that has bearings in `bearings` against `reference`, leaving out
@@ -385,27 +418,241 @@ pub fn calibrate(
         .collect()
 }
 
+/// Widest shift of the reference's times [`time_check`] tries, s.
+pub const TIME_CHECK_RANGE_S: f64 = 1.0;
+/// Step of [`time_check`]'s shifts, s.
+pub const TIME_CHECK_STEP_S: f64 = 0.05;
+/// A best shift this large or larger, with the spread at no shift
+/// [`TIME_CHECK_SPREAD_RATIO`] times the best or more, means the reference's times are off.
+pub const TIME_CHECK_MAX_SHIFT_S: f64 = 0.25;
+/// See [`TIME_CHECK_MAX_SHIFT_S`].
+pub const TIME_CHECK_SPREAD_RATIO: f64 = 1.3;
+/// Widest spread of the bearings about the reference at its best shift that still describes
+/// the same source, degrees (a survey in a 5 m hall: 1.1°): more, and the reference is not of
+/// this recording, or the site file's array pose is wrong.
+pub const MAX_REFERENCE_SPREAD_DEG: f64 = 6.0;
+
+/// How well a reference agrees with the frames in time ([`time_check`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeCheck {
+    /// The shift of the reference's times that fits the frames best, s: the reference reads
+    /// this much later than the arrays' time base (subtract it from its `t` to align them).
+    pub best_shift_s: f64,
+    /// The spread of the bearings about the reference at that shift, degrees.
+    pub best_spread_deg: f64,
+    /// The spread with the reference as given, degrees.
+    pub spread_deg: f64,
+}
+
+impl TimeCheck {
+    /// Whether the reference's times are off: a best shift of [`TIME_CHECK_MAX_SHIFT_S`] or
+    /// more that tightens the spread by [`TIME_CHECK_SPREAD_RATIO`] or more.
+    pub fn is_off(&self) -> bool {
+        self.best_shift_s.abs() >= TIME_CHECK_MAX_SHIFT_S - 1e-9
+            && (self.spread_deg.is_nan()
+                || self.spread_deg >= TIME_CHECK_SPREAD_RATIO * self.best_spread_deg)
+    }
+
+    /// Ok when the reference describes the frames' source on their time base; otherwise what
+    /// is wrong, for an error about `reference` (its file name).
+    pub fn verdict(&self, reference: &str) -> Result<(), String> {
+        if self.best_spread_deg.is_nan() || self.best_spread_deg > MAX_REFERENCE_SPREAD_DEG {
+            return Err(format!(
+                "{reference} does not describe the source the arrays heard: their directions \
+                 are {:.1}° from it at the median even at its best time shift ({:+.2} s; more \
+                 than {MAX_REFERENCE_SPREAD_DEG}° is not a room's image). Is it this \
+                 recording's reference, on the arrays' time base within a second, and are the \
+                 arrays' position and yaw in the site file right?",
+                self.best_spread_deg, self.best_shift_s
+            ));
+        }
+        if self.is_off() {
+            return Err(format!(
+                "{reference} does not agree with the frames in time: their directions fit it \
+                 best ({:.2}° against {:.2}°) when its times are read {:+.2} s off. Put it on \
+                 the arrays' time base (subtract {:.2} s from its t?) and run again",
+                self.best_spread_deg, self.spread_deg, self.best_shift_s, self.best_shift_s
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The spread of `pairs` about the reference, degrees: the median over frames of the angle
+/// between the measurement and the reference once each array's zenith bias per `bin_deg` of
+/// measured zenith is taken out (the bias is what the fit is for; what is left is noise, and
+/// the reference's own errors).
+fn spread_deg(pairs: &[(u16, Pair)], bin_deg: f64) -> Option<f64> {
+    let key = |a: u16, p: &Pair| (a, (p.measured_rad.to_degrees() / bin_deg).floor() as i64);
+    let mut bins: std::collections::BTreeMap<(u16, i64), Vec<f64>> = Default::default();
+    for (a, p) in pairs {
+        bins.entry(key(*a, p)).or_default().push(p.measured_rad - p.true_rad);
+    }
+    let medians: std::collections::BTreeMap<(u16, i64), f64> =
+        bins.into_iter().map(|(k, mut v)| (k, median(&mut v))).collect();
+    let mut r: Vec<f64> = pairs
+        .iter()
+        .map(|(a, p)| {
+            let dz = p.measured_rad - p.true_rad - medians[&key(*a, p)];
+            (p.azimuth_error_rad * p.true_rad.sin()).hypot(dz).to_degrees()
+        })
+        .collect();
+    (r.len() >= 20).then(|| median(&mut r))
+}
+
+/// Checks the reference's time base against the frames: the spread of the bearings about the
+/// reference ([`spread_deg`]) with the reference's times shifted by −1 to 1 s in 0.05 s steps.
+/// A reference that is late or early shows as a best shift away from 0 (the azimuth of a
+/// source moving across the array and the zenith of one moving along a spoke both lag). None
+/// with fewer than 20 frames against the reference.
+pub fn time_check(
+    site: &Site,
+    obstacles: &[crate::site::SiteObstacle],
+    bearings: &[Bearing],
+    reference: &Reference,
+    bin_deg: f64,
+) -> Option<TimeCheck> {
+    let bin_deg = bin_deg.max(0.1);
+    let at = |shift_s: f64| {
+        let shifted: Vec<Bearing> =
+            bearings.iter().map(|b| Bearing { t: b.t + shift_s, ..*b }).collect();
+        spread_deg(&pairs(site, obstacles, &shifted, reference), bin_deg)
+    };
+    let spread = at(0.0)?;
+    let steps = (TIME_CHECK_RANGE_S / TIME_CHECK_STEP_S).round() as i64;
+    let mut best = (0.0, spread);
+    for k in -steps..=steps {
+        let shift = k as f64 * TIME_CHECK_STEP_S;
+        if let Some(s) = at(shift) {
+            if s < best.1 {
+                best = (shift, s);
+            }
+        }
+    }
+    Some(TimeCheck { best_shift_s: best.0, best_spread_deg: best.1, spread_deg: spread })
+}
+
+/// A site file's lines as TOML sees them: each line's code (comment cut off, strings kept
+/// whole) and the depth of brackets open before it, so that a `[` starting a continuation line
+/// of a multi-line array is not taken for a table header.
+struct SiteLines<'a> {
+    lines: Vec<&'a str>,
+    code: Vec<&'a str>,
+    depth_before: Vec<i64>,
+    newline: &'static str,
+}
+
+impl<'a> SiteLines<'a> {
+    fn new(text: &'a str) -> Self {
+        let lines: Vec<&str> = text.lines().collect();
+        let mut code = Vec::with_capacity(lines.len());
+        let mut depth_before = Vec::with_capacity(lines.len());
+        let mut depth = 0i64;
+        for l in &lines {
+            depth_before.push(depth);
+            let mut quote: Option<char> = None;
+            let mut end = l.len();
+            let mut escaped = false;
+            for (i, ch) in l.char_indices() {
+                match quote {
+                    Some(q) => {
+                        if q == '"' && ch == '\\' && !escaped {
+                            escaped = true;
+                            continue;
+                        }
+                        if ch == q && !escaped {
+                            quote = None;
+                        }
+                    }
+                    None => match ch {
+                        '"' | '\'' => quote = Some(ch),
+                        '#' => {
+                            end = i;
+                            break;
+                        }
+                        '[' => depth += 1,
+                        ']' => depth -= 1,
+                        _ => {}
+                    },
+                }
+                escaped = false;
+            }
+            code.push(&l[..end]);
+        }
+        let newline = if text.contains("\r\n") { "\r\n" } else { "\n" };
+        Self { lines, code, depth_before, newline }
+    }
+
+    /// Whether line `j` is a table header (`[...]` or `[[...]]` outside any value).
+    fn is_header(&self, j: usize) -> bool {
+        self.depth_before[j] == 0 && self.code[j].trim_start().starts_with('[')
+    }
+
+    /// Whether line `j` is a `zenith_correction_deg` key outside any value.
+    fn is_correction(&self, j: usize) -> bool {
+        self.depth_before[j] == 0 && self.key(j) == Some("zenith_correction_deg")
+    }
+
+    /// The key of line `j` (`key = value`), if it has one.
+    fn key(&self, j: usize) -> Option<&'a str> {
+        let (k, _) = self.code[j].split_once('=')?;
+        Some(k.trim())
+    }
+
+    /// Whether line `j`'s value closes on the line (its brackets balance).
+    fn closes(&self, j: usize) -> bool {
+        self.depth_before.get(j + 1).is_none_or(|&d| d == self.depth_before[j])
+    }
+
+    fn join(&self, out: &[String]) -> String {
+        let mut s = out.join(self.newline);
+        s.push_str(self.newline);
+        s
+    }
+}
+
+/// The error for a `zenith_correction_deg` written over several lines at line `j` (0-based).
+fn multi_line(path: &Path, j: usize) -> ConfigError {
+    ConfigError {
+        path: path.to_path_buf(),
+        line: Some(j + 1),
+        message: "a zenith_correction_deg over several lines: put it on one line or remove it \
+                  before calibrating"
+            .into(),
+    }
+}
+
 /// Site file text with every `zenith_correction_deg` line taken out (each on one line, as
-/// [`site_with_corrections`] writes it), checked by reading it back.
+/// [`site_with_corrections`] writes it; other lines, comments and line ends stay as they were),
+/// checked by reading it back.
 pub fn site_without_corrections(text: &str, path: &Path) -> Result<String, ConfigError> {
-    let kept: Vec<&str> =
-        text.lines().filter(|l| !l.trim_start().starts_with("zenith_correction_deg")).collect();
-    let mut out = kept.join("\n");
-    out.push('\n');
+    let s = SiteLines::new(text);
+    let mut kept = Vec::with_capacity(s.lines.len());
+    for (j, l) in s.lines.iter().enumerate() {
+        if s.is_correction(j) {
+            if !s.closes(j) {
+                return Err(multi_line(path, j));
+            }
+            continue;
+        }
+        kept.push((*l).to_string());
+    }
+    let out = s.join(&kept);
     let site = Site::parse(&out, path)?;
     if site.arrays.iter().any(|a| !a.zenith_correction.is_empty()) {
         return Err(ConfigError {
             path: path.to_path_buf(),
             line: None,
-            message: "a zenith_correction_deg is left (over several lines?)".into(),
+            message: "a zenith_correction_deg is left after taking them out".into(),
         });
     }
     Ok(out)
 }
 
 /// Site file text with each given array's `zenith_correction_deg` line set (replacing the one
-/// it had; other lines, comments included, stay as they were), checked by reading it back:
-/// every array parses and carries the correction written (at the line's 0.01°).
+/// it had; an empty correction takes it out; other lines, comments and line ends stay as they
+/// were), checked by reading it back: every array parses and carries the correction written (at
+/// the line's 0.01°).
 pub fn site_with_corrections(
     text: &str,
     path: &Path,
@@ -416,42 +663,38 @@ pub fn site_with_corrections(
         line,
         message,
     };
-    let lines: Vec<&str> = text.lines().collect();
-    let header = |l: &str| l.trim_start().starts_with('[');
-    let mut out: Vec<String> = Vec::with_capacity(lines.len() + corrections.len());
+    let s = SiteLines::new(text);
+    let n = s.lines.len();
+    let mut out: Vec<String> = Vec::with_capacity(n + corrections.len());
     let mut written = Vec::new();
     let mut i = 0;
-    while i < lines.len() {
-        if lines[i].trim() != "[[array]]" {
-            out.push(lines[i].to_string());
+    while i < n {
+        if !(s.is_header(i) && s.code[i].trim() == "[[array]]") {
+            out.push(s.lines[i].to_string());
             i += 1;
             continue;
         }
-        let end = (i + 1..lines.len()).find(|&j| header(lines[j])).unwrap_or(lines.len());
-        let id = lines[i + 1..end].iter().find_map(|l| {
-            let (k, v) = l.split_once('=')?;
-            (k.trim() == "id").then(|| v.split('#').next()?.trim().parse::<u16>().ok())?
+        let end = (i + 1..n).find(|&j| s.is_header(j)).unwrap_or(n);
+        let id = (i + 1..end).find_map(|j| {
+            (s.depth_before[j] == 0 && s.key(j) == Some("id"))
+                .then(|| s.code[j].split_once('=')?.1.trim().parse::<u16>().ok())?
         });
         let new = id.and_then(|id| corrections.iter().find(|c| c.0 == id));
         let mut block: Vec<String> = Vec::new();
-        for (j, l) in lines.iter().enumerate().take(end).skip(i) {
-            let is_old = l.trim_start().starts_with("zenith_correction_deg");
-            if is_old && new.is_some() {
-                if !l.split('#').next().unwrap_or("").trim_end().ends_with("]]") {
-                    return Err(err(
-                        Some(j + 1),
-                        "a zenith_correction_deg over several lines: put it on one line or \
-                         remove it before calibrating"
-                            .into(),
-                    ));
+        for j in i..end {
+            if s.is_correction(j) && new.is_some() {
+                if !s.closes(j) {
+                    return Err(multi_line(path, j));
                 }
                 continue;
             }
-            block.push(l.to_string());
+            block.push(s.lines[j].to_string());
         }
         if let Some((id, c)) = new {
-            let last = block.iter().rposition(|l| !l.trim().is_empty()).unwrap_or(0);
-            block.insert(last + 1, c.to_toml_line());
+            if !c.is_empty() {
+                let last = block.iter().rposition(|l| !l.trim().is_empty()).unwrap_or(0);
+                block.insert(last + 1, c.to_toml_line());
+            }
             written.push(*id);
         }
         out.extend(block);
@@ -460,8 +703,7 @@ pub fn site_with_corrections(
     if let Some((id, _)) = corrections.iter().find(|c| !written.contains(&c.0)) {
         return Err(err(None, format!("no [[array]] with id = {id} to calibrate")));
     }
-    let mut result = out.join("\n");
-    result.push('\n');
+    let result = s.join(&out);
     let site = Site::parse(&result, path)?;
     for (id, c) in corrections {
         let got = site.array(*id).map(|a| a.zenith_correction.to_toml_line());
@@ -515,7 +757,7 @@ mod tests {
             pairs.push(Pair {
                 measured_rad: measured.to_radians(),
                 true_rad: z.to_radians(),
-                height_m: 2.0,
+                azimuth_error_rad: 0.0,
             });
         }
         let f = fit(1, &pairs, FitConfig::default());
@@ -539,7 +781,7 @@ mod tests {
         let pair = |z: f64, e: f64| Pair {
             measured_rad: (z + e).to_radians(),
             true_rad: z.to_radians(),
-            height_m: 2.0,
+            azimuth_error_rad: 0.0,
         };
         let mut pairs: Vec<Pair> = (0..25).map(|_| pair(43.0, -2.0)).collect();
         pairs.extend((0..25).map(|_| pair(54.0, -3.0)));
@@ -603,5 +845,127 @@ mod tests {
         // And taken out again.
         let bare = site_without_corrections(&out, p).unwrap();
         assert!(!bare.contains("zenith_correction_deg") && bare.contains("id = 2 # east"));
+    }
+
+    #[test]
+    fn a_bin_beyond_the_largest_bias_gives_no_point_and_a_correction_stays_on_its_side() {
+        let pair = |z: f64, e: f64| Pair {
+            measured_rad: (z + e).to_radians(),
+            true_rad: z.to_radians(),
+            azimuth_error_rad: 0.0,
+        };
+        let mut pairs: Vec<Pair> = (0..25).map(|_| pair(43.0, -2.0)).collect();
+        pairs.extend((0..25).map(|_| pair(90.0, -35.0)));
+        let f = fit(1, &pairs, FitConfig::default());
+        let pts = f.correction.to_degrees();
+        assert!(pts.len() == 1 && (pts[0][0] - 42.5).abs() < 1e-9, "{:?}", f.bins);
+        assert!((pts[0][1] + 2.0).abs() < 1e-9, "{pts:?}");
+        let far = f.bins.iter().find(|b| (b.centre_deg - 57.5).abs() < 1e-9).unwrap();
+        assert!(far.no_point(&FitConfig::default()).unwrap().contains("30°"), "{far:?}");
+        // A −12° bias at 80° would put a measured 85° below the array's plane: held at 90°.
+        let c = ZenithCorrection::from_degrees(&[[80.0, -12.0]]).unwrap();
+        assert!((c.correct(85f64.to_radians()).to_degrees() - 90.0).abs() < 1e-9);
+        let c = ZenithCorrection::from_degrees(&[[5.0, 3.0]]).unwrap();
+        assert_eq!(c.correct(2f64.to_radians()), 0.0);
+    }
+
+    /// A site with one array at the origin, level, and bearings of a source flying a square
+    /// at 2 m/s around it (measured with a bias of −2° in zenith), against its reference.
+    fn square_flight() -> (Site, Vec<Bearing>, Reference) {
+        let site = Site::parse(
+            "sample_rate_hz = 48000\n[[array]]\nid = 1\nposition = [0.0, 0.0, 0.0]\n",
+            Path::new("site.toml"),
+        )
+        .unwrap();
+        let at = |t: f64| {
+            // A 16 m square side, centred on the array at 3–5 m out, at 2 m height.
+            let u = (t * 2.0 / 16.0).rem_euclid(4.0);
+            let (k, f) = (u.floor(), u.fract());
+            let corners = [[-4.0, -4.0], [4.0, -4.0], [4.0, 4.0], [-4.0, 4.0], [-4.0, -4.0]];
+            let (a, b) = (corners[k as usize], corners[k as usize + 1]);
+            [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f, 2.0 + 0.5 * (t / 7.0).sin()]
+        };
+        let mut reference = Reference::default();
+        for k in 0..=6000 {
+            let t = f64::from(k) * 0.01;
+            reference.t.push(t);
+            reference.position.push(at(t));
+        }
+        let bearings = (5..590)
+            .map(|k| {
+                let t = f64::from(k) * 0.1;
+                let p = at(t);
+                let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                Bearing {
+                    t,
+                    array_id: 1,
+                    azimuth_rad: p[1].atan2(p[0])
+                        + 0.3f64.to_radians() * (f64::from(k) * 1.7).sin(),
+                    zenith_rad: (p[2] / r).acos() - 2f64.to_radians(),
+                    residual: 0.0,
+                    quality: 1.0,
+                }
+            })
+            .collect();
+        (site, bearings, reference)
+    }
+
+    /// The oracle: the reference's times moved by a known amount; the check finds that amount
+    /// and says the times are off, and says nothing of the reference as it is.
+    #[test]
+    fn a_reference_off_in_time_is_found() {
+        let (site, bearings, reference) = square_flight();
+        let check = time_check(&site, &[], &bearings, &reference, 5.0).unwrap();
+        assert_eq!(check.best_shift_s, 0.0, "{check:?}");
+        assert!(!check.is_off(), "{check:?}");
+        for shift in [0.5, -0.6] {
+            let late = Reference {
+                t: reference.t.iter().map(|t| t + shift).collect(),
+                position: reference.position.clone(),
+            };
+            let check = time_check(&site, &[], &bearings, &late, 5.0).unwrap();
+            assert!((check.best_shift_s - shift).abs() < 0.051, "{shift}: {check:?}");
+            assert!(check.is_off(), "{shift}: {check:?}");
+            assert!(check.verdict("ref.csv").unwrap_err().contains("in time"), "{check:?}");
+        }
+        assert_eq!(check.verdict("ref.csv"), Ok(()), "{check:?}");
+        // Another flight's reference (ten seconds off: beyond the search) does not describe
+        // this one at all.
+        let other = Reference {
+            t: reference.t.iter().map(|t| t + 10.0).collect(),
+            position: reference.position.clone(),
+        };
+        let check = time_check(&site, &[], &bearings, &other, 5.0).unwrap();
+        assert!(check.verdict("ref.csv").unwrap_err().contains("does not describe"), "{check:?}");
+        // The fit, on the reference as it is, finds the −2°.
+        let fits = calibrate(&site, &[], &bearings, &reference, FitConfig::default());
+        assert!(fits[0].correction.to_degrees().iter().all(|p| (p[1] + 2.0).abs() < 0.05));
+    }
+
+    #[test]
+    fn the_site_rewrite_reads_toml_not_lines() {
+        let p = Path::new("site.toml");
+        // A multi-line array whose continuation lines start with `[`, a header with a
+        // comment, a one-line empty correction, CRLF line ends.
+        let text = "sample_rate_hz = 48000\r\n[[array]]  # north\r\nid = 1\r\nposition = [0.0, 0.0, 0.05]\r\npositions = [\r\n  [0.05, 0.0],\r\n  [0.0, 0.05],\r\n  [-0.05, 0.0],\r\n  [0.0, -0.05],\r\n]\r\nzenith_correction_deg = []\r\n\r\n[[array]]\r\nid = 2\r\nposition = [5.0, 0.0, 0.05]\r\nzenith_correction_deg = [[40.0, -1.0]]\r\n";
+        check_rewrite(text, p);
+    }
+
+    fn check_rewrite(text: &str, p: &Path) {
+        Site::parse(text, p).unwrap();
+        let c1 = ZenithCorrection::from_degrees(&[[30.0, -1.0], [70.0, -5.0]]).unwrap();
+        let out = site_with_corrections(text, p, &[(1, c1.clone())]).unwrap();
+        let site = Site::parse(&out, p).unwrap();
+        assert_eq!(site.array(1).unwrap().zenith_correction, c1);
+        assert_eq!(site.array(2).unwrap().zenith_correction.to_degrees(), vec![[40.0, -1.0]]);
+        assert!(!out.replace("\r\n", "").contains('\n'), "a bare LF: {out:?}");
+        assert!(out.contains("[[array]]  # north\r\n"), "{out:?}");
+        // An empty correction takes array 2's out; the rest stays.
+        let out = site_with_corrections(&out, p, &[(2, ZenithCorrection::default())]).unwrap();
+        let site = Site::parse(&out, p).unwrap();
+        assert!(site.array(2).unwrap().zenith_correction.is_empty(), "{out:?}");
+        assert_eq!(site.array(1).unwrap().zenith_correction, c1);
+        let bare = site_without_corrections(&out, p).unwrap();
+        assert!(!bare.contains("zenith_correction_deg") && bare.contains("\r\n"), "{bare:?}");
     }
 }

@@ -60,8 +60,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("reading {}", args.reference.display()))?;
     let reference = Reference::parse(&ref_text, &args.reference)?;
     let mut source = FrameSource::new(aim_tracker::link::open_input(&args.frames)?);
-    let bearings = zenith::bearings_of(&site, &mut source)
+    let (bearings, stats) = zenith::bearings_of(&site, &mut source)
         .with_context(|| format!("reading {}", args.frames))?;
+    if bearings.is_empty() {
+        anyhow::bail!(
+            "{}: no Doa frame of an array of {} ({} frames read, {} of them from arrays the \
+             site does not have)",
+            args.frames,
+            args.site.display(),
+            stats.frames,
+            stats.unknown_array
+        );
+    }
     if !(args.max_mad_deg.is_finite() && args.max_mad_deg > 0.0) {
         anyhow::bail!("--max-mad-deg {} must be positive", args.max_mad_deg);
     }
@@ -73,6 +83,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let obstacles = aim_tracker::site::obstacles(&site_text, &args.site)?;
     let fits = zenith::calibrate(&site, &obstacles, &bearings, &reference, config);
     let mut err = std::io::stderr().lock();
+    if let Some(check) = zenith::time_check(&site, &obstacles, &bearings, &reference, args.bin_deg)
+    {
+        writeln!(
+            err,
+            "time check: spread about the reference {:.2}°; best {:.2}° with its times {:+.2} s",
+            check.spread_deg, check.best_spread_deg, check.best_shift_s
+        )?;
+        check.verdict(&args.reference.display().to_string()).map_err(anyhow::Error::msg)?;
+    }
     if fits.is_empty() {
         anyhow::bail!(
             "no Doa frame of an array of {} falls within the reference's times ({} bearings, \
@@ -94,13 +113,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?;
         writeln!(err, "  zenith (deg)  frames  measured − true: median  MAD")?;
         for b in &f.bins {
-            let used = if b.frames < args.min_frames {
-                "  (too few: no point)"
-            } else if b.mad_deg > args.max_mad_deg {
-                "  (too wide: no point)"
-            } else {
-                ""
-            };
+            let used = b.no_point(&config).map(|why| format!("  ({why}: no point)"));
+            let used = used.unwrap_or_default();
             writeln!(
                 err,
                 "  {:>11.1}  {:>6}  {:>+22.2}  {:>4.2}{used}",
@@ -108,10 +122,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )?;
         }
         if f.correction.is_empty() {
-            writeln!(err, "  no bin gives a point: array {} left as it was", f.array_id)?;
-        } else {
-            corrections.push((f.array_id, f.correction.clone()));
+            writeln!(
+                err,
+                "  no bin gives a point: array {} left without a correction",
+                f.array_id
+            )?;
         }
+        corrections.push((f.array_id, f.correction.clone()));
+    }
+    if corrections.iter().all(|c| c.1.is_empty()) {
+        anyhow::bail!(
+            "no bin of any array gives a point (see the bins above): record longer, or closer to \
+             the heights and distances drones fly at, or check the reference"
+        );
     }
     let text = zenith::site_with_corrections(&site_text, &args.site, &corrections)?;
     match &args.out {
