@@ -1,14 +1,16 @@
 //! The calibration flight of a site: what an installer flies, with a reference beside it, to
 //! calibrate the arrays' zenith (`aim calibrate`, [`aim_tracker::zenith`]).
 //!
-//! The same room, arrays, obstacles, noise and drone as the scenario; only the flight is
-//! replaced: from each array, straight spokes out to the room's walls (ending 1 m short of the
+//! The same room, arrays, obstacles and noise as the scenario; the drone is the installer's
+//! own calibration drone (a nominal DJI Mini 2 whatever type the scenario flies, so no scored
+//! airframe reaches the correction), and the flight is replaced: from each array, straight spokes out to the room's walls (ending 1 m short of the
 //! wall along the spoke, at most [`SPOKE_MAX_M`] long) and back, every 45° of azimuth, at two heights
 //! ([`SURVEY_HEIGHTS_M`], lowered under a low ceiling), at [`SURVEY_SPEED_MPS`]. It covers the
 //! zeniths a drone is seen at in that room without following any flight the tracker is later
 //! scored on. [`calibrate`] simulates it with a seed of its own and fits the arrays'
-//! corrections from its frames and its truth track exactly as `aim calibrate` does (the truth
-//! standing for the installer's reference).
+//! corrections from its frames exactly as `aim calibrate` does, against the installer's
+//! reference: the truth track with the errors of a real one ([`REFERENCE_SIGMA_M`] of
+//! position noise per row, a time offset drawn within ±[`REFERENCE_MAX_OFFSET_S`] per survey).
 
 use nalgebra::Vector3;
 
@@ -27,6 +29,12 @@ pub const SPOKE_START_M: f64 = 1.5;
 pub const SPOKE_MIN_M: f64 = 3.0;
 /// How far the spokes stay from the walls and the ceiling, m.
 pub const WALL_MARGIN_M: f64 = 1.0;
+/// Standard deviation of the reference's position error per axis and row, m (a total station
+/// tracking a prism, or motion capture, does better; marked spots with noted times worse).
+pub const REFERENCE_SIGMA_M: f64 = 0.02;
+/// Largest offset of the reference's clock against the arrays' time base, s (the offset of a
+/// survey is drawn uniformly within ±this from its seed).
+pub const REFERENCE_MAX_OFFSET_S: f64 = 0.05;
 
 /// Horizontal distance from `(x, y)` along azimuth `az` (rad, from +x towards +y) to the
 /// boundary of the box `[0, lx] × [0, ly]`.
@@ -84,6 +92,8 @@ pub fn survey_scenario(scenario: &Scenario, seed: u64) -> Result<Scenario, Strin
     }
     let plan = FlightPlan::new(&points, SURVEY_SPEED_MPS, 1.0, 2.0, 0.5, 2.0, Heading::Fixed)?;
     let mut s = scenario.clone();
+    s.drone = crate::profile::DroneProfile::dji_mini_2();
+    s.population = crate::profile::Population::default();
     s.name = format!("{}-zenith-survey", scenario.name);
     s.description = format!("zenith calibration survey of {}", scenario.name);
     s.seed = seed;
@@ -109,16 +119,42 @@ pub fn calibrate(scenario: &Scenario, seed: u64, threads: usize) -> anyhow::Resu
     )?;
     let site_text = sim.site.to_toml()?;
     let truth_csv = sim.truth.to_csv();
+    let reference_csv = reference_of(&sim.truth, seed);
     let array_ids = sim.arrays.iter().map(|a| u16::from(a.id)).collect();
-    Survey::fit(site_text, truth_csv, array_ids, links)
+    Survey::fit(Some(seed), site_text, truth_csv, reference_csv, array_ids, links)
+}
+
+/// The installer's reference of a survey flown with `seed`: `t,x,y,z` of the truth track, each
+/// position with [`REFERENCE_SIGMA_M`] of Gaussian error per axis, every time off by one offset
+/// drawn uniformly within ±[`REFERENCE_MAX_OFFSET_S`].
+pub fn reference_of(truth: &crate::truth::Truth, seed: u64) -> String {
+    use rand::{Rng, SeedableRng};
+    use std::fmt::Write as _;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x2EF0_5E7E_11CE_0FF5);
+    let offset = rng.random_range(-REFERENCE_MAX_OFFSET_S..=REFERENCE_MAX_OFFSET_S);
+    let mut out = String::from("t,x,y,z\n");
+    for r in &truth.rows {
+        let mut p = r.position;
+        for v in &mut p {
+            // Box–Muller: one normal deviate per axis.
+            let (u1, u2): (f64, f64) = (rng.random_range(f64::EPSILON..1.0), rng.random());
+            *v += REFERENCE_SIGMA_M * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+        }
+        let _ = writeln!(out, "{:.4},{:.4},{:.4},{:.4}", r.t_s + offset, p[0], p[1], p[2]);
+    }
+    out
 }
 
 /// A simulated survey and what it gave.
 pub struct Survey {
     /// The survey's site file (uncalibrated).
     pub site_text: String,
-    /// Its truth track, `truth.csv` (the reference).
+    /// The seed it was flown with (None: a stored survey that did not say).
+    pub seed: Option<u64>,
+    /// Its truth track, `truth.csv` (scoring only).
     pub truth_csv: String,
+    /// The installer's reference, `reference.csv` ([`reference_of`]): what the fit uses.
+    pub reference_csv: String,
     /// The arrays' ids, in scenario order.
     pub array_ids: Vec<u16>,
     /// Each array's link bytes, in scenario order.
@@ -129,30 +165,41 @@ pub struct Survey {
 
 impl Survey {
     /// Fits each array's correction from a survey's files, as `aim calibrate` does: each
-    /// array's link bytes through the intake, against the truth track as the reference.
+    /// array's link bytes through the intake, against the reference.
     pub fn fit(
+        seed: Option<u64>,
         site_text: String,
         truth_csv: String,
+        reference_csv: String,
         array_ids: Vec<u16>,
         links: Vec<Vec<u8>>,
     ) -> anyhow::Result<Self> {
         use aim_tracker::zenith;
         let site = aim_tracker::site::Site::parse(&site_text, std::path::Path::new("site.toml"))?;
-        let reference = zenith::Reference::parse(&truth_csv, std::path::Path::new("truth.csv"))?;
+        let reference =
+            zenith::Reference::parse(&reference_csv, std::path::Path::new("reference.csv"))?;
         let obstacles =
             aim_tracker::site::obstacles(&site_text, std::path::Path::new("site.toml"))?;
         let mut fits = Vec::new();
         for bytes in &links {
             let mut source = aim_tracker::link::FrameSource::new(bytes.as_slice());
-            let bearings = zenith::bearings_of(&site, &mut source)?;
+            let (bearings, _) = zenith::bearings_of(&site, &mut source)?;
             let config = zenith::FitConfig::default();
+            // The checks `aim calibrate` makes of a reference.
+            if let Some(check) =
+                zenith::time_check(&site, &obstacles, &bearings, &reference, config.bin_deg)
+            {
+                check.verdict("the survey's reference.csv").map_err(anyhow::Error::msg)?;
+            }
             fits.extend(zenith::calibrate(&site, &obstacles, &bearings, &reference, config));
         }
-        Ok(Survey { site_text, truth_csv, array_ids, links, fits })
+        Ok(Survey { seed, site_text, truth_csv, reference_csv, array_ids, links, fits })
     }
 
-    /// Reads a survey stored by `host-sim fly --zenith-survey` or `bench` (`site.toml`,
-    /// `truth.csv`, `frames-<id>.aimraw` of every array of the site) and fits it again.
+    /// Reads a survey stored by `host-sim fly --zenith-survey` or `bench` (`survey.toml` with
+    /// its seed, `site.toml`, `reference.csv`, `truth.csv`, `frames-<id>.aimraw` of every array
+    /// of the site) and fits it again. A survey stored before `reference.csv` and `survey.toml`
+    /// existed is fitted against its truth and has no seed.
     pub fn load(dir: &std::path::Path) -> anyhow::Result<Self> {
         use anyhow::Context as _;
         let read = |name: &str| {
@@ -161,22 +208,38 @@ impl Survey {
         };
         let site_text = String::from_utf8(read("site.toml")?).context("site.toml is not UTF-8")?;
         let truth_csv = String::from_utf8(read("truth.csv")?).context("truth.csv is not UTF-8")?;
+        let reference_csv = if dir.join("reference.csv").is_file() {
+            String::from_utf8(read("reference.csv")?).context("reference.csv is not UTF-8")?
+        } else {
+            truth_csv.clone()
+        };
+        let seed = if dir.join("survey.toml").is_file() {
+            let text =
+                String::from_utf8(read("survey.toml")?).context("survey.toml is not UTF-8")?;
+            #[derive(serde::Deserialize)]
+            #[serde(deny_unknown_fields)]
+            struct Stored {
+                seed: u64,
+            }
+            let stored: Stored = toml::from_str(&text)
+                .with_context(|| format!("reading {}", dir.join("survey.toml").display()))?;
+            Some(stored.seed)
+        } else {
+            None
+        };
         let site = aim_tracker::site::Site::parse(&site_text, &dir.join("site.toml"))?;
         let array_ids: Vec<u16> = site.arrays.iter().map(|a| a.id).collect();
         let links = array_ids
             .iter()
             .map(|id| read(&format!("frames-{id}.aimraw")))
             .collect::<anyhow::Result<_>>()?;
-        Self::fit(site_text, truth_csv, array_ids, links)
+        Self::fit(seed, site_text, truth_csv, reference_csv, array_ids, links)
     }
 
-    /// The corrections by array id (arrays whose fit gave no point left out).
+    /// The corrections by array id (empty for an array whose fit gave no point: a site file
+    /// written with them has no correction for it, not an older one).
     pub fn corrections(&self) -> Vec<(u16, aim_tracker::zenith::ZenithCorrection)> {
-        self.fits
-            .iter()
-            .filter(|f| !f.correction.is_empty())
-            .map(|f| (f.array_id, f.correction.clone()))
-            .collect()
+        self.fits.iter().map(|f| (f.array_id, f.correction.clone())).collect()
     }
 }
 

@@ -32,7 +32,7 @@ fn median_error_deg(survey: &Survey, correction: &ZenithCorrection) -> f64 {
     let site = aim_tracker::site::Site::parse(&survey.site_text, Path::new("site.toml")).unwrap();
     let reference = zenith::Reference::parse(&survey.truth_csv, Path::new("truth.csv")).unwrap();
     let mut source = aim_tracker::link::FrameSource::new(survey.links[0].as_slice());
-    let bearings = zenith::bearings_of(&site, &mut source).unwrap();
+    let (bearings, _) = zenith::bearings_of(&site, &mut source).unwrap();
     let mut e: Vec<f64> = zenith::pairs(&site, &[], &bearings, &reference)
         .iter()
         .map(|(_, p)| (correction.correct(p.measured_rad) - p.true_rad).abs().to_degrees())

@@ -195,6 +195,14 @@ impl Suite {
                 shared.join(", ")
             )));
         }
+        if let Some(z) = f.zenith_survey_seed {
+            if tuning.contains(&z) || f.evaluation_seeds.contains(&z) {
+                return Err(err(format!(
+                    "zenith_survey_seed {z} is also a flight's seed: the survey needs a seed of \
+                     its own, or its noise and drone would repeat that flight's"
+                )));
+            }
+        }
         let filters = match &f.filters {
             None => vec![FilterKind::Paper, FilterKind::Aim],
             Some(names) => names
@@ -486,7 +494,21 @@ fn zenith_surveys(
                     .map(|from| from.join("zenith-survey").join(&fam.name))
                     .filter(|d| d.join("truth.csv").is_file());
                 let survey = match stored {
-                    Some(dir) => host_sim::survey::Survey::load(&dir),
+                    Some(dir) => host_sim::survey::Survey::load(&dir).and_then(|sv| {
+                        match sv.seed {
+                            Some(s) if s != seed => anyhow::bail!(
+                                "{} was surveyed with seed {s}, the suite asks for {seed}",
+                                dir.display()
+                            ),
+                            None => eprintln!(
+                                "warning: {} does not say its seed (stored before \
+                                 survey.toml); re-fitted as it is",
+                                dir.display()
+                            ),
+                            Some(_) => {}
+                        }
+                        Ok(sv)
+                    }),
                     None => Scenario::load_with(&fam.scenario, seed, &fam.overrides)
                         .and_then(|sc| host_sim::survey::calibrate(&sc, seed, 1)),
                 };

@@ -131,6 +131,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let zenith = match args.zenith_survey {
         Some(seed) => {
+            if seed == scenario.seed {
+                anyhow::bail!(
+                    "--zenith-survey {seed} is the flight's own seed ({}): a survey needs a seed \
+                     of its own, or its noise would repeat the flight's",
+                    args.scenario.display()
+                );
+            }
             let progress = host_sim::progress_bar("zenith survey");
             let survey = host_sim::survey::calibrate(&scenario, seed, args.threads)
                 .with_context(|| format!("{}: the zenith survey", args.scenario.display()))?;
@@ -241,8 +248,15 @@ pub(crate) fn store_survey(dir: &Path, survey: &host_sim::survey::Survey) -> any
         std::fs::write(dir.join(name), bytes)
             .with_context(|| format!("writing {}", dir.join(name).display()))
     };
+    if let Some(seed) = survey.seed {
+        write(
+            "survey.toml",
+            format!("# The zenith survey's seed (host_sim::survey).\nseed = {seed}\n").as_bytes(),
+        )?;
+    }
     write("site.toml", survey.site_text.as_bytes())?;
     write("truth.csv", survey.truth_csv.as_bytes())?;
+    write("reference.csv", survey.reference_csv.as_bytes())?;
     for (id, bytes) in survey.array_ids.iter().zip(&survey.links) {
         write(&format!("frames-{id}.aimraw"), bytes)?;
     }
