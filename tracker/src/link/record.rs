@@ -33,7 +33,7 @@ pub fn record(
     until: Until,
     progress: &mut dyn FnMut(&LinkStats),
 ) -> (LinkStats, io::Result<()>) {
-    let mut deframer: Box<Deframer> = Box::new(Deframer::new());
+    let mut deframer: Box<Deframer> = Box::default();
     let mut buf = vec![0u8; 4096];
     let result = loop {
         if until.deadline.is_some_and(|d| Instant::now() >= d) {
