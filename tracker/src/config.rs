@@ -149,3 +149,46 @@ mod tests {
         assert_eq!((e.line, e.message.starts_with("unknown field `b`")), (Some(3), true), "{e}");
     }
 }
+
+/// `N` numbers of a configuration file, exactly `N`: serde reads `[f64; N]` from the first `N`
+/// elements of a longer TOML array and drops the rest without a word (`position = [1, 2, 0.05,
+/// 9]` was read as `[1, 2, 0.05]`); this type refuses it with the count, at the value's line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coords<const N: usize>(pub [f64; N]);
+
+impl<const N: usize> std::ops::Deref for Coords<N> {
+    type Target = [f64; N];
+    fn deref(&self) -> &[f64; N] {
+        &self.0
+    }
+}
+
+impl<'de, const N: usize> serde::Deserialize<'de> for Coords<N> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Exactly<const N: usize>;
+        impl<'de, const N: usize> serde::de::Visitor<'de> for Exactly<N> {
+            type Value = Coords<N>;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "an array of {N} numbers")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Self::Value, A::Error> {
+                let mut out = [0.0; N];
+                let mut n = 0;
+                while let Some(v) = seq.next_element::<f64>()? {
+                    if let Some(slot) = out.get_mut(n) {
+                        *slot = v;
+                    }
+                    n += 1;
+                }
+                if n != N {
+                    return Err(serde::de::Error::invalid_length(n, &self));
+                }
+                Ok(Coords(out))
+            }
+        }
+        d.deserialize_seq(Exactly::<N>)
+    }
+}

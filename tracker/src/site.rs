@@ -51,7 +51,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::config::{line_of, parse_toml, read_text, ConfigError};
+use crate::config::{line_of, parse_toml, read_text, ConfigError, Coords};
 
 /// One array's pose.
 #[derive(Clone, Debug, PartialEq)]
@@ -209,8 +209,8 @@ struct SiteFile {
 #[serde(deny_unknown_fields)]
 struct ObstacleEntry {
     name: Option<String>,
-    min: [f64; 3],
-    max: [f64; 3],
+    min: Coords<3>,
+    max: Coords<3>,
     loss_db: Option<f64>,
 }
 
@@ -249,7 +249,7 @@ fn checked_obstacles(
     for (k, o) in list.iter().enumerate() {
         let e = o.get_ref();
         let finite =
-            e.min.iter().chain(&e.max).all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M);
+            e.min.iter().chain(e.max.iter()).all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M);
         if !finite || (0..3).any(|i| e.min[i] >= e.max[i]) {
             return Err(err(
                 o.span(),
@@ -266,21 +266,26 @@ fn checked_obstacles(
             return Err(err(o.span(), format!("obstacle {}: loss_db must be 0 to 200 dB", k + 1)));
         }
         let name = e.name.clone().unwrap_or_else(|| "obstacle".into());
-        out.push(SiteObstacle { name, min: e.min, max: e.max });
+        out.push(SiteObstacle { name, min: e.min.0, max: e.max.0 });
     }
     Ok(out)
+}
+
+/// A site file's microphone positions as plain arrays.
+fn coords2(p: &[Coords<2>]) -> Vec<[f64; 2]> {
+    p.iter().map(|c| c.0).collect()
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ArrayEntry {
     id: toml::Spanned<u16>,
-    position: toml::Spanned<[f64; 3]>,
+    position: toml::Spanned<Coords<3>>,
     yaw_deg: Option<toml::Spanned<f64>>,
     pitch_deg: Option<toml::Spanned<f64>>,
     roll_deg: Option<toml::Spanned<f64>>,
     geometry: Option<toml::Spanned<String>>,
-    positions: Option<toml::Spanned<Vec<[f64; 2]>>>,
+    positions: Option<toml::Spanned<Vec<Coords<2>>>>,
     clock_offset_s: Option<toml::Spanned<f64>>,
     clock_drift_ppm: Option<toml::Spanned<f64>>,
     zenith_correction_deg: Option<toml::Spanned<Vec<Vec<f64>>>>,
@@ -290,7 +295,7 @@ struct ArrayEntry {
 #[serde(deny_unknown_fields)]
 struct BeaconEntry {
     id: toml::Spanned<u16>,
-    position: toml::Spanned<[f64; 3]>,
+    position: toml::Spanned<Coords<3>>,
     period_s: toml::Spanned<f64>,
     sequence: toml::Spanned<String>,
     level_db: Option<toml::Spanned<f64>>,
@@ -356,9 +361,9 @@ const MAX_MIC_RADIUS_M: f64 = 1.0;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RoomEntry {
-    min: Option<[f64; 3]>,
-    max: Option<[f64; 3]>,
-    size: Option<[f64; 3]>,
+    min: Option<Coords<3>>,
+    max: Option<Coords<3>>,
+    size: Option<Coords<3>>,
 }
 
 /// Closest two arrays' centres may be, m: the width of a microphone array (two closer
@@ -379,7 +384,7 @@ fn array_pose(
     if earlier.iter().any(|p| p.id == id) {
         return Err(err(a.id.span(), format!("array id {id} appears twice")));
     }
-    let position = *a.position.get_ref();
+    let position = a.position.get_ref().0;
     if !position.iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M) {
         return Err(err(
             a.position.span(),
@@ -437,7 +442,7 @@ fn array_pose(
         }
         if let (Some(preset), Some(p)) = (preset_positions(g.get_ref()), &a.positions) {
             // Both given: they must be the same array.
-            if !same_microphones(&preset, p.get_ref()) {
+            if !same_microphones(&preset, &coords2(p.get_ref())) {
                 return Err(err(
                     p.span(),
                     format!(
@@ -483,7 +488,7 @@ fn array_pose(
     pose.geometry = a.geometry.as_ref().map(|g| g.get_ref().clone());
     // A named geometry without positions stands for its positions (checked against the Hello).
     pose.mic_positions_m = match (&a.positions, &a.geometry) {
-        (Some(p), _) => p.get_ref().clone(),
+        (Some(p), _) => coords2(p.get_ref()),
         (None, Some(g)) => preset_positions(g.get_ref()).unwrap_or_default(),
         (None, None) => Vec::new(),
     };
@@ -524,7 +529,7 @@ fn beacon_spec(
     if earlier.iter().any(|e| e.id == id) {
         return Err(err(b.id.span(), format!("beacon id {id} appears twice")));
     }
-    let position = *b.position.get_ref();
+    let position = b.position.get_ref().0;
     if !position.iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M) {
         return Err(err(
             b.position.span(),
@@ -631,7 +636,7 @@ fn parse_site(text: &str, path: &Path) -> Result<(Site, SiteSync), ConfigError> 
     let room = match &file.room {
         Some(r) => {
             let e = r.get_ref();
-            let (min, max) = match (e.min, e.max, e.size) {
+            let (min, max) = match (e.min.map(|c| c.0), e.max.map(|c| c.0), e.size.map(|c| c.0)) {
                 (Some(min), Some(max), None) => (min, max),
                 (None, None, Some(size)) => ([0.0; 3], size),
                 _ => {
@@ -782,6 +787,18 @@ loss_db = 15.0
 
         let e = Site::load(Path::new("/nonexistent/site.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/site.toml: cannot read"), "{e}");
+
+        // A number too many is refused, not dropped (serde's [f64; 3] took the first three).
+        for (text, line, got) in [
+            ("[[array]]\nid = 1\nposition = [0.0, 0.0, 0.05, 9.0]\n", 3, 4),
+            ("[[array]]\nid = 1\nposition = [0.0, 0.0, 0.0]\npositions = [[0.05, 0.0], [0.0, 0.05, 1.0], [-0.05, 0.0], [0.0, -0.05]]\n", 4, 3),
+            ("[[array]]\nid = 1\nposition = [0.0, 0.0, 0.0]\n[room]\nsize = [9.0, 7.0, 3.0, 1.0]\n", 5, 4),
+            ("[[array]]\nid = 1\nposition = [0.0, 0.0, 0.0]\n[[obstacle]]\nmin = [1.0, 1.0, 0.0]\nmax = [2.0, 2.0, 1.0, 0.0]\n", 6, 4),
+        ] {
+            let e = Site::parse(text, Path::new("n.toml")).unwrap_err();
+            assert_eq!(e.line, Some(line), "{e}");
+            assert!(e.message.contains(&format!("invalid length {got}, expected an array of")), "{e}");
+        }
     }
 
     #[test]

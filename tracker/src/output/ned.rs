@@ -37,7 +37,7 @@ struct File {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct OriginEntry {
-    position: Option<toml::Spanned<[f64; 3]>>,
+    position: Option<toml::Spanned<crate::config::Coords<3>>>,
     x_axis_from_north_deg: Option<toml::Spanned<f64>>,
 }
 
@@ -84,7 +84,7 @@ impl Origin {
         }
         let position = match &o.position {
             Some(p) => {
-                let v = *p.get_ref();
+                let v = p.get_ref().0;
                 if !v.iter().all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE_M) {
                     return Err(err(
                         p.span(),

@@ -69,7 +69,7 @@ mod tests {
         // The site file's own check refuses it first, by its line.
         let e = Site::load(&path).unwrap_err();
         assert_eq!(e.line, Some(5), "{e}");
-        assert!(e.message.contains("expected an array of length 3"), "{e}");
+        assert!(e.message.contains("invalid length 2, expected an array of 3 numbers"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
