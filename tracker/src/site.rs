@@ -788,6 +788,11 @@ loss_db = 15.0
         let e = Site::load(Path::new("/nonexistent/site.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/site.toml: cannot read"), "{e}");
 
+        // Whole numbers are numbers.
+        let ints = "[[array]]\nid = 1\nposition = [1, 2, 0]\n[room]\nsize = [20, 20, 5]\n";
+        let site = Site::parse(ints, Path::new("i.toml")).unwrap();
+        assert_eq!(site.array(1).unwrap().position, [1.0, 2.0, 0.0]);
+
         // A number too many is refused, not dropped (serde's [f64; 3] took the first three).
         for (text, line, got) in [
             ("[[array]]\nid = 1\nposition = [0.0, 0.0, 0.05, 9.0]\n", 3, 4),

@@ -423,8 +423,11 @@ pub const TIME_CHECK_RANGE_S: f64 = 1.0;
 /// Step of [`time_check`]'s shifts, s.
 pub const TIME_CHECK_STEP_S: f64 = 0.05;
 /// A best shift this large or larger, with the spread at no shift
-/// [`TIME_CHECK_SPREAD_RATIO`] times the best or more, means the reference's times are off.
-pub const TIME_CHECK_MAX_SHIFT_S: f64 = 0.25;
+/// [`TIME_CHECK_SPREAD_RATIO`] times the best or more, means the reference's times are off
+/// (on a survey of a 5 m hall a reference 0.2 s late moved two points of the fit by 2.2–2.5°,
+/// one 0.1 s late two points by 0.8°; a simulated survey's reference clock is up to 50 ms off and
+/// the sound reaches the array up to 45 ms after it left the drone).
+pub const TIME_CHECK_MAX_SHIFT_S: f64 = 0.15;
 /// See [`TIME_CHECK_MAX_SHIFT_S`].
 pub const TIME_CHECK_SPREAD_RATIO: f64 = 1.3;
 /// Widest spread of the bearings about the reference at its best shift that still describes
@@ -467,11 +470,19 @@ impl TimeCheck {
             ));
         }
         if self.is_off() {
+            // The best shift at the end of the search: the offset may be larger.
+            let edge = self.best_shift_s.abs() >= TIME_CHECK_RANGE_S - 1e-9;
+            let at_least = if edge { "at least " } else { "" };
             return Err(format!(
                 "{reference} does not agree with the frames in time: their directions fit it \
-                 best ({:.2}° against {:.2}°) when its times are read {:+.2} s off. Put it on \
-                 the arrays' time base (subtract {:.2} s from its t?) and run again",
-                self.best_spread_deg, self.spread_deg, self.best_shift_s, self.best_shift_s
+                 best ({:.2}° against {:.2}°) when its times are read {}{:+.2} s off. Put it \
+                 on the arrays' time base (subtract {}{:.2} s from its t?) and run again",
+                self.best_spread_deg,
+                self.spread_deg,
+                at_least,
+                self.best_shift_s,
+                at_least,
+                self.best_shift_s
             ));
         }
         Ok(())

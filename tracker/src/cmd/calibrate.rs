@@ -83,14 +83,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let obstacles = aim_tracker::site::obstacles(&site_text, &args.site)?;
     let fits = zenith::calibrate(&site, &obstacles, &bearings, &reference, config);
     let mut err = std::io::stderr().lock();
-    if let Some(check) = zenith::time_check(&site, &obstacles, &bearings, &reference, args.bin_deg)
-    {
-        writeln!(
-            err,
-            "time check: spread about the reference {:.2}°; best {:.2}° with its times {:+.2} s",
-            check.spread_deg, check.best_spread_deg, check.best_shift_s
-        )?;
-        check.verdict(&args.reference.display().to_string()).map_err(anyhow::Error::msg)?;
+    // Each array on its own: one array with a wrong clock offset in the site file is not
+    // hidden by the others.
+    for f in &fits {
+        let mine: Vec<_> = bearings.iter().filter(|b| b.array_id == f.array_id).copied().collect();
+        match zenith::time_check(&site, &obstacles, &mine, &reference, args.bin_deg) {
+            Some(check) => {
+                writeln!(
+                    err,
+                    "array {}: time check: spread about the reference {:.2}°; best {:.2}° with \
+                     its times {:+.2} s",
+                    f.array_id, check.spread_deg, check.best_spread_deg, check.best_shift_s
+                )?;
+                let name = format!("{} (array {})", args.reference.display(), f.array_id);
+                check.verdict(&name).map_err(anyhow::Error::msg)?;
+            }
+            None => writeln!(
+                err,
+                "array {}: time check skipped: fewer than 20 frames against the reference",
+                f.array_id
+            )?,
+        }
     }
     if fits.is_empty() {
         anyhow::bail!(
