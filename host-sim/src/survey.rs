@@ -105,10 +105,10 @@ pub fn survey_scenario(scenario: &Scenario, seed: u64) -> Result<Scenario, Strin
 
 /// Simulates the survey of `scenario` with `seed` (`threads` worker threads, 0: all cores) and
 /// fits every array's zenith correction
-/// from its frames (link bytes in link order, through the intake) against its truth track, as
-/// `aim calibrate frames-<id>.aimraw --reference truth.csv --site site.toml` does. Returns the
-/// corrections by array id, the fits and the survey's files (site text, truth CSV, each
-/// array's link bytes) for storing.
+/// from its frames (link bytes in link order, through the intake) against the installer's
+/// reference ([`reference_of`]), as `aim calibrate frames-<id>.aimraw --reference reference.csv
+/// --site site.toml` does. Returns the corrections by array id, the fits and the survey's files
+/// (site text, truth and reference CSV, each array's link bytes) for storing.
 pub fn calibrate(scenario: &Scenario, seed: u64, threads: usize) -> anyhow::Result<Survey> {
     let survey = survey_scenario(scenario, seed).map_err(anyhow::Error::msg)?;
     let (sim, links) = crate::eval::link::simulate_links(
@@ -198,8 +198,8 @@ impl Survey {
 
     /// Reads a survey stored by `host-sim fly --zenith-survey` or `bench` (`survey.toml` with
     /// its seed, `site.toml`, `reference.csv`, `truth.csv`, `frames-<id>.aimraw` of every array
-    /// of the site) and fits it again. A survey stored before `reference.csv` and `survey.toml`
-    /// existed is fitted against its truth and has no seed.
+    /// of the site) and fits it again. A survey stored without `reference.csv` is refused (it
+    /// would be fitted against the truth); one without `survey.toml` has no seed.
     pub fn load(dir: &std::path::Path) -> anyhow::Result<Self> {
         use anyhow::Context as _;
         let read = |name: &str| {
@@ -208,11 +208,16 @@ impl Survey {
         };
         let site_text = String::from_utf8(read("site.toml")?).context("site.toml is not UTF-8")?;
         let truth_csv = String::from_utf8(read("truth.csv")?).context("truth.csv is not UTF-8")?;
-        let reference_csv = if dir.join("reference.csv").is_file() {
-            String::from_utf8(read("reference.csv")?).context("reference.csv is not UTF-8")?
-        } else {
-            truth_csv.clone()
-        };
+        if !dir.join("reference.csv").is_file() {
+            anyhow::bail!(
+                "{} has no reference.csv: a survey stored before session 28 was fitted against \
+                 the exact truth, which no installer has; remove that zenith-survey directory \
+                 to survey again",
+                dir.display()
+            );
+        }
+        let reference_csv =
+            String::from_utf8(read("reference.csv")?).context("reference.csv is not UTF-8")?;
         let seed = if dir.join("survey.toml").is_file() {
             let text =
                 String::from_utf8(read("survey.toml")?).context("survey.toml is not UTF-8")?;

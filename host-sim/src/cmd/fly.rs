@@ -59,9 +59,11 @@ pub struct Args {
     #[arg(long)]
     no_fuse: bool,
     /// First fly the site's zenith calibration survey (`host_sim::survey`: spokes out from
-    /// each array and back, at 1 and 2.5 m, in this room) with this seed, fit each array's
-    /// `zenith_correction_deg` from its frames and truth as `aim calibrate` does, and track with
-    /// it. The survey's files go to `OUT/zenith-survey/`.
+    /// each array and back, at 1 and 2.5 m, in this room, by the installer's nominal Mini 2)
+    /// with this seed (not the flight's), fit each array's `zenith_correction_deg` from its
+    /// frames against the installer's reference (the truth with 2 cm of noise and a clock up
+    /// to 50 ms off) as `aim calibrate` does, and track with it. The survey's files go to
+    /// `OUT/zenith-survey/`.
     #[arg(long, value_name = "SEED")]
     zenith_survey: Option<u64>,
 }
@@ -239,9 +241,10 @@ pub(crate) fn track(
     track_recorded(&recorded, out, how)
 }
 
-/// Stores a zenith survey in `dir`: its site file, truth (the reference), each array's frames
+/// Stores a zenith survey in `dir`: its seed (`survey.toml`), site file, the installer's
+/// reference (`reference.csv`), the truth (`truth.csv`, scoring only), each array's frames
 /// (`frames-<id>.aimraw`, in scenario order) and the calibrated site file `site-calibrated.toml`:
-/// `aim calibrate frames-<id>.aimraw --reference truth.csv --site site.toml` gives the same.
+/// `aim calibrate frames-<id>.aimraw --reference reference.csv --site site.toml` gives the same.
 pub(crate) fn store_survey(dir: &Path, survey: &host_sim::survey::Survey) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let write = |name: &str, bytes: &[u8]| {
