@@ -201,6 +201,12 @@ pub struct Pair {
     pub azimuth_error_rad: f64,
 }
 
+/// The bin of width `width_deg` a measured zenith falls in (bin k spans k·width to
+/// (k + 1)·width degrees), shared by [`fit`] and the time check's spread.
+fn bin_of(measured_rad: f64, width_deg: f64) -> i64 {
+    (measured_rad.to_degrees() / width_deg).floor() as i64
+}
+
 /// Fits one array's correction: per bin of the measured zenith, the median of (measured −
 /// true). A median, because a frame that locked onto a reflection is an outlier, not noise.
 pub fn fit(array_id: u16, pairs: &[Pair], config: FitConfig) -> Fit {
@@ -210,7 +216,7 @@ pub fn fit(array_id: u16, pairs: &[Pair], config: FitConfig) -> Fit {
         if !(p.measured_rad.is_finite() && p.true_rad.is_finite()) {
             continue;
         }
-        let key = (p.measured_rad.to_degrees() / width).floor() as i64;
+        let key = bin_of(p.measured_rad, width);
         bins.entry(key).or_default().push((p.measured_rad - p.true_rad).to_degrees());
     }
     let mut out = Vec::new();
@@ -494,7 +500,7 @@ impl TimeCheck {
 /// measured zenith is taken out (the bias is what the fit is for; what is left is noise, and
 /// the reference's own errors).
 fn spread_deg(pairs: &[(u16, Pair)], bin_deg: f64) -> Option<f64> {
-    let key = |a: u16, p: &Pair| (a, (p.measured_rad.to_degrees() / bin_deg).floor() as i64);
+    let key = |a: u16, p: &Pair| (a, bin_of(p.measured_rad, bin_deg));
     let mut bins: std::collections::BTreeMap<(u16, i64), Vec<f64>> = Default::default();
     for (a, p) in pairs {
         bins.entry(key(*a, p)).or_default().push(p.measured_rad - p.true_rad);
@@ -532,7 +538,7 @@ pub fn time_check(
     let spread = at(0.0)?;
     let steps = (TIME_CHECK_RANGE_S / TIME_CHECK_STEP_S).round() as i64;
     let mut best = (0.0, spread);
-    for k in -steps..=steps {
+    for k in (-steps..=steps).filter(|&k| k != 0) {
         let shift = k as f64 * TIME_CHECK_STEP_S;
         if let Some(s) = at(shift) {
             if s < best.1 {
@@ -787,13 +793,17 @@ mod tests {
         assert!((f.correction.correct(m.to_radians()).to_degrees() - 60.0).abs() < 0.15);
     }
 
-    #[test]
-    fn a_bin_with_too_few_frames_or_too_wide_a_spread_gives_no_point() {
-        let pair = |z: f64, e: f64| Pair {
+    /// A frame at true zenith `z` measured `e` off, degrees.
+    fn pair(z: f64, e: f64) -> Pair {
+        Pair {
             measured_rad: (z + e).to_radians(),
             true_rad: z.to_radians(),
             azimuth_error_rad: 0.0,
-        };
+        }
+    }
+
+    #[test]
+    fn a_bin_with_too_few_frames_or_too_wide_a_spread_gives_no_point() {
         let mut pairs: Vec<Pair> = (0..25).map(|_| pair(43.0, -2.0)).collect();
         pairs.extend((0..25).map(|_| pair(54.0, -3.0)));
         pairs.extend((0..5).map(|_| pair(65.0, -4.0)));
@@ -860,11 +870,6 @@ mod tests {
 
     #[test]
     fn a_bin_beyond_the_largest_bias_gives_no_point_and_a_correction_stays_on_its_side() {
-        let pair = |z: f64, e: f64| Pair {
-            measured_rad: (z + e).to_radians(),
-            true_rad: z.to_radians(),
-            azimuth_error_rad: 0.0,
-        };
         let mut pairs: Vec<Pair> = (0..25).map(|_| pair(43.0, -2.0)).collect();
         pairs.extend((0..25).map(|_| pair(90.0, -35.0)));
         let f = fit(1, &pairs, FitConfig::default());
