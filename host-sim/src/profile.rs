@@ -70,6 +70,7 @@ pub struct DroneProfile {
     /// Drag-torque to thrust ratio `k_h / k_v`, m.
     pub torque_to_thrust_m: f64,
     /// Moments of inertia about body x, y, z, kg·m².
+    #[serde(deserialize_with = "aim_tracker::config::exactly")]
     pub inertia_kgm2: [f64; 3],
     /// Quadratic drag coefficients, horizontal and vertical, N·s²/m².
     pub drag_h: f64,

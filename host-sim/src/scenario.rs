@@ -62,6 +62,7 @@
 //! ```
 use std::path::{Path, PathBuf};
 
+use aim_tracker::config::Coords;
 use anyhow::{anyhow, bail, Context as _};
 use nalgebra::Vector3;
 use serde::Deserialize;
@@ -107,14 +108,14 @@ fn d_press() -> f64 {
 struct FilePath {
     kind: String,
     side_m: Option<f64>,
-    start: Option<[f64; 2]>,
+    start: Option<Coords<2>>,
     height_m: Option<f64>,
     #[serde(default)]
     clockwise: bool,
     #[serde(default = "d_one")]
     loops: u32,
-    points: Option<Vec<[f64; 3]>>,
-    position: Option<[f64; 3]>,
+    points: Option<Vec<Coords<3>>>,
+    position: Option<Coords<3>>,
     #[serde(default = "d_speed")]
     speed_mps: f64,
     #[serde(default = "d_one_f")]
@@ -126,13 +127,13 @@ struct FilePath {
     #[serde(default = "d_hover")]
     hover_end_s: f64,
     yaw_deg: Option<f64>,
-    centre: Option<[f64; 2]>,
+    centre: Option<Coords<2>>,
     radius_m: Option<f64>,
     start_deg: Option<f64>,
     length_m: Option<f64>,
     axis_deg: Option<f64>,
-    area_min: Option<[f64; 3]>,
-    area_max: Option<[f64; 3]>,
+    area_min: Option<Coords<3>>,
+    area_max: Option<Coords<3>>,
     wander_s: Option<f64>,
     walk_tau_s: Option<f64>,
     max_climb_mps: Option<f64>,
@@ -161,7 +162,7 @@ fn d_pause() -> f64 {
 #[serde(untagged)]
 enum Absorption {
     All(f64),
-    Each([f64; 6]),
+    Each(Coords<6>),
 }
 
 #[derive(Deserialize, Default)]
@@ -199,7 +200,7 @@ impl FileAirframe {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FileRoom {
-    size_m: [f64; 3],
+    size_m: Coords<3>,
     absorption: Option<Absorption>,
     #[serde(default = "d_one")]
     reflection_order: u32,
@@ -211,8 +212,8 @@ struct FileRoom {
 #[serde(deny_unknown_fields)]
 struct FileObstacle {
     name: Option<String>,
-    min: [f64; 3],
-    max: [f64; 3],
+    min: Coords<3>,
+    max: Coords<3>,
     #[serde(default = "d_loss")]
     loss_db: f64,
 }
@@ -223,7 +224,7 @@ fn d_loss() -> f64 {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FileNoise {
-    position: [f64; 3],
+    position: Coords<3>,
     centre_hz: f64,
     #[serde(default = "d_bw")]
     bandwidth_hz: f64,
@@ -239,7 +240,7 @@ fn d_bw() -> f64 {
 #[serde(deny_unknown_fields)]
 struct FileBeacon {
     id: Option<u8>,
-    position: [f64; 3],
+    position: Coords<3>,
     #[serde(default = "d_beacon_level")]
     level_db: f64,
     #[serde(default = "d_one_f")]
@@ -282,8 +283,8 @@ fn d_dirs() -> usize {
 struct FileArray {
     id: u8,
     geometry: Option<String>,
-    positions: Option<Vec<[f64; 2]>>,
-    position: [f64; 3],
+    positions: Option<Vec<Coords<2>>>,
+    position: Coords<3>,
     #[serde(default)]
     yaw_deg: f64,
     facing: Option<String>,
@@ -301,7 +302,7 @@ struct FileArray {
     dead_mics: Vec<usize>,
     #[serde(default)]
     stuck_mics: Vec<usize>,
-    link_down_s: Option<[f64; 2]>,
+    link_down_s: Option<Coords<2>>,
 }
 fn d_self_noise() -> f64 {
     35.0
@@ -661,8 +662,11 @@ impl Scenario {
             ));
         }
         let height = || need(p.height_m, "height_m");
-        let centre =
-            || p.centre.ok_or(format!("path.centre = [x, y] is required for kind `{}`", p.kind));
+        let centre = || {
+            p.centre
+                .map(|c| c.0)
+                .ok_or(format!("path.centre = [x, y] is required for kind `{}`", p.kind))
+        };
         let loops = p.loops.max(1);
         let continuous = |shape: Shape| {
             FlightPlan::continuous(
@@ -681,7 +685,7 @@ impl Scenario {
                     .as_ref()
                     .ok_or("path.points = [[x, y, z], ...] is required for kind `smooth`")?
                     .iter()
-                    .map(|q| Vector3::from(*q))
+                    .map(|q| Vector3::from(**q))
                     .collect();
                 if points.iter().flat_map(|w| w.iter()).any(|v| !v.is_finite()) {
                     return Err("path: points must be finite".into());
@@ -721,8 +725,8 @@ impl Scenario {
                 if heading != Heading::Fixed {
                     return Err("path.heading: kind `walk` flies with a fixed heading".into());
                 }
-                let corner = |v: Option<[f64; 3]>, key: &str| {
-                    v.map(Vector3::from)
+                let corner = |v: Option<Coords<3>>, key: &str| {
+                    v.map(|c| Vector3::from(c.0))
                         .ok_or(format!("path.{key} = [x, y, z] is required for kind `walk`"))
                 };
                 let spec = WalkSpec {
@@ -744,7 +748,7 @@ impl Scenario {
                 "square" => {
                     let side = need(p.side_m, "side_m")?;
                     let height = need(p.height_m, "height_m")?;
-                    let start = p.start.ok_or("path.start = [x, y] is required for kind `square`")?;
+                    let start = p.start.map(|c| c.0).ok_or("path.start = [x, y] is required for kind `square`")?;
                     if !(side > 0.0 && height.is_finite()) {
                         return Err("path.side_m must be positive".into());
                     }
@@ -755,10 +759,10 @@ impl Scenario {
                     .as_ref()
                     .ok_or("path.points = [[x, y, z], ...] is required for kind `waypoints`")?
                     .iter()
-                    .map(|q| Vector3::from(*q))
+                    .map(|q| Vector3::from(**q))
                     .collect(),
                 "hover" => vec![Vector3::from(
-                    p.position.ok_or("path.position = [x, y, z] is required for kind `hover`")?,
+                    *p.position.ok_or("path.position = [x, y, z] is required for kind `hover`")?,
                 )],
                 k => {
                         return Err(format!(
@@ -799,14 +803,14 @@ impl Scenario {
                     }
                     (None, Some(t)) => {
                         let c = air.speed_of_sound_mps();
-                        [crate::reverb::absorption_for_t30(r.size_m, t, c); 6]
+                        [crate::reverb::absorption_for_t30(r.size_m.0, t, c); 6]
                     }
                     (None, None) => [0.2; 6],
                     (Some(Absorption::All(a)), None) => [a; 6],
-                    (Some(Absorption::Each(a)), None) => a,
+                    (Some(Absorption::Each(a)), None) => a.0,
                 };
                 let room = Room {
-                    size_m: r.size_m,
+                    size_m: r.size_m.0,
                     absorption,
                     reflection_order: r.reflection_order,
                     late_tail: r.late_tail.unwrap_or(r.rt60_s.is_some()),
@@ -822,8 +826,8 @@ impl Scenario {
             .enumerate()
             .map(|(i, o)| Obstacle {
                 name: o.name.unwrap_or_else(|| format!("obstacle{}", i + 1)),
-                min: Vector3::from(o.min),
-                max: Vector3::from(o.max),
+                min: Vector3::from(*o.min),
+                max: Vector3::from(*o.max),
                 loss_db: o.loss_db,
             })
             .collect();
@@ -834,7 +838,7 @@ impl Scenario {
             .noise
             .into_iter()
             .map(|n| NoiseSource {
-                position_m: Vector3::from(n.position),
+                position_m: Vector3::from(*n.position),
                 centre_hz: n.centre_hz,
                 bandwidth_hz: n.bandwidth_hz,
                 spl_db: n.spl_db,
@@ -857,7 +861,7 @@ impl Scenario {
         for (i, b) in f.beacon.into_iter().enumerate() {
             let speaker = crate::beacon::BeaconSpeaker {
                 id: b.id.unwrap_or(i as u8 + 1),
-                position_m: Vector3::from(b.position),
+                position_m: Vector3::from(*b.position),
                 level_db: b.level_db,
                 period_s: b.period_s,
                 clock_drift_ppm: b.clock_drift_ppm,
@@ -889,7 +893,7 @@ impl Scenario {
                         a.id
                     ))
                 }
-                (None, Some(p)) => ("custom".to_string(), p),
+                (None, Some(p)) => ("custom".to_string(), p.iter().map(|c| c.0).collect()),
                 (g, None) => {
                     let g = g.unwrap_or_else(|| "respeaker-6mic".into());
                     let p = preset_positions(&g).ok_or_else(|| {
@@ -906,7 +910,7 @@ impl Scenario {
                 return Err(format!("array id {} appears twice", a.id));
             }
             // The tracker's site refuses arrays closer than an array's width; so does the world.
-            let here = Vector3::from(a.position);
+            let here = Vector3::from(*a.position);
             if let Some((x, d)) = arrays
                 .iter()
                 .map(|x: &ArrayConfig| (x, (x.position_m - here).norm()))
@@ -934,7 +938,7 @@ impl Scenario {
                 id: a.id,
                 geometry,
                 positions,
-                position_m: Vector3::from(a.position),
+                position_m: Vector3::from(*a.position),
                 yaw_rad: a.yaw_deg.to_radians(),
                 facing_down,
                 clock: Clock { offset_s: a.clock_offset_s, drift_ppm: a.clock_drift_ppm },
@@ -943,7 +947,7 @@ impl Scenario {
                 phase_mismatch_us: a.phase_mismatch_us,
                 dead_mics: a.dead_mics.clone(),
                 stuck_mics: a.stuck_mics.clone(),
-                link_down_s: a.link_down_s,
+                link_down_s: a.link_down_s.map(|c| c.0),
             };
             if let Some(m) =
                 cfg.dead_mics.iter().chain(&cfg.stuck_mics).find(|&&m| m >= cfg.positions.len())
@@ -1058,16 +1062,16 @@ fn check_path_file(p: &FilePath) -> Result<(), String> {
         within("path.height_m", h, -MAX_SIDE_M..=MAX_SIDE_M, "m")?;
     }
     if let Some(start) = p.start {
-        point("path.start", &start)?;
+        point("path.start", start.as_slice())?;
     }
     if let Some(points) = &p.points {
         within("path.points", points.len(), 1..=MAX_WAYPOINTS, "waypoints")?;
         for q in points {
-            point("path.points", q)?;
+            point("path.points", q.as_slice())?;
         }
     }
     if let Some(q) = p.position {
-        point("path.position", &q)?;
+        point("path.position", q.as_slice())?;
     }
     if !(p.speed_mps > 0.0 && p.speed_mps <= 20.0) {
         return Err(format!(
@@ -1084,11 +1088,11 @@ fn check_path_file(p: &FilePath) -> Result<(), String> {
     }
     // The continuous kinds' numbers (NaN fails every range).
     if let Some(c) = p.centre {
-        point("path.centre", &c)?;
+        point("path.centre", c.as_slice())?;
     }
     for (key, corner) in [("path.area_min", p.area_min), ("path.area_max", p.area_max)] {
         if let Some(c) = corner {
-            point(key, &c)?;
+            point(key, c.as_slice())?;
         }
     }
     if let Some(r) = p.radius_m {

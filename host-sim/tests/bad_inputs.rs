@@ -180,6 +180,50 @@ fn a_refused_value_is_named_with_its_file_and_line() {
 }
 
 #[test]
+fn coordinates_of_the_wrong_count_are_refused_at_their_line() {
+    // serde reads `[f64; 3]` from the first three numbers of a longer array and drops the rest;
+    // a scenario file must say what it meant instead.
+    let cases = [
+        (
+            "position = [3.0, 0.5, 0.05]",
+            "position = [3.0, 0.5, 0.05, 9.0]",
+            14,
+            "invalid length 4, expected an array of 3 numbers",
+        ),
+        (
+            "start = [1.0, 1.0]",
+            "start = [1.0]",
+            8,
+            "invalid length 1, expected an array of 2 numbers",
+        ),
+        (
+            "size_m = [10.0, 10.0, 4.0]",
+            "size_m = [10.0, 10.0, 4.0, 1.0]",
+            11,
+            "invalid length 4, expected an array of 3 numbers",
+        ),
+    ];
+    for (i, (from, to, line, count)) in cases.iter().enumerate() {
+        let path = scratch(&format!("count{i}.toml"));
+        std::fs::write(&path, edit(from, to)).unwrap();
+        let e = format!("{:#}", Scenario::load(&path).unwrap_err());
+        assert!(e.starts_with(&format!("{}:{line}:", path.display())), "{e}");
+        assert!(e.contains(count), "{e}");
+    }
+    let path = scratch("count-obstacle.toml");
+    let obstacle = "[[obstacle]]\nmin = [1.0, 1.0, 0.0, 5.0]\nmax = [2.0, 2.0, 1.0]\n";
+    std::fs::write(&path, format!("{BASE}{obstacle}")).unwrap();
+    let e = format!("{:#}", Scenario::load(&path).unwrap_err());
+    assert!(e.starts_with(&format!("{}:16:", path.display())), "{e}");
+    // A drone profile's own vectors too.
+    let e = refused(&edit(
+        "preset = \"dji-mini-2\"",
+        "preset = \"dji-mini-2\"\ninertia_kgm2 = [0.001, 0.001, 0.002, 7.0]",
+    ));
+    assert!(e.contains("invalid length 4, expected an array of 3 numbers"), "{e}");
+}
+
+#[test]
 fn memory_is_estimated_and_a_run_past_the_limit_is_refused_up_front() {
     // The issue measured ~190 MB per simulated minute for one 6-mic array when the whole run
     // was held; streamed, a minute needs the flight log and the truth (~25 MB) and windows of

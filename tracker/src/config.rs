@@ -156,6 +156,14 @@ mod tests {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Coords<const N: usize>(pub [f64; N]);
 
+/// `#[serde(deserialize_with = "aim_tracker::config::exactly")]` for a plain `[f64; N]` field:
+/// exactly `N` numbers, as [`Coords`] reads them.
+pub fn exactly<'de, D: serde::Deserializer<'de>, const N: usize>(
+    d: D,
+) -> Result<[f64; N], D::Error> {
+    <Coords<N> as serde::Deserialize>::deserialize(d).map(|c| c.0)
+}
+
 impl<const N: usize> std::ops::Deref for Coords<N> {
     type Target = [f64; N];
     fn deref(&self) -> &[f64; N] {
