@@ -27,7 +27,7 @@ const _: () = assert!(crate::bpf::ANALYSIS_LEN.is_multiple_of(SNIPPET_LEN));
 /// end's 7-tap half-band (centre tap 3 samples before the pair's second sample, stamped at its
 /// first: 2) and the BPF decimator's 48-tap FIR at 24 kHz (centre 23.5 samples before the last
 /// of the 3 inputs of an output, stamped at the first: 21.5 · 2 = 43). Checked against a tone's
-/// phase (`dsp/tests/snippets.rs`).
+/// phase (`dsp/tests/dsp/snippets.rs`).
 pub const GROUP_DELAY_INPUT_SAMPLES: f32 = 45.0;
 
 /// One snippet: [`SNIPPET_LEN`] samples of the array's mean signal, value of sample `j` =

@@ -16,6 +16,7 @@ use std::io::Write;
 use std::process::Command;
 use std::time::Instant;
 
+use aim_tracker::link::bus::{fix_key, frames_key, BusOptions, FRAMES_ALL};
 use procs::{free_port, Proc, PATIENCE};
 use zenoh::Wait as _;
 
@@ -196,4 +197,29 @@ fn gateway_tracker_and_recorder_on_the_bus_equal_aim_replay() {
         assert_eq!(stats["published"][array.to_string()], sent.len(), "{stats}");
         assert_eq!(stats["link"]["crc_errors"], 0, "{stats}");
     }
+}
+
+// The bus's key and endpoint rules (here rather than in the library's unit tests: CI builds the
+// library's tests without the feature, and this binary with it).
+
+#[test]
+fn keys_are_the_documented_ones_and_bad_names_are_refused() {
+    assert_eq!(frames_key(3), "aim/array/3/frames");
+    assert_eq!(fix_key("hall").unwrap(), "aim/track/hall/fix");
+    for bad in ["", "a/b", "*", "x$", "q?", "#"] {
+        let e = fix_key(bad).unwrap_err().to_string();
+        assert!(e.contains("cannot be a key chunk"), "{e}");
+    }
+    let all: zenoh::key_expr::KeyExpr = FRAMES_ALL.try_into().unwrap();
+    let one: zenoh::key_expr::KeyExpr = frames_key(200).try_into().unwrap();
+    assert!(all.intersects(&one));
+}
+
+#[test]
+fn a_bad_endpoint_is_named() {
+    let options = BusOptions { connect: vec!["nonsense".into()], ..BusOptions::default() };
+    let e = format!("{:#}", options.config().unwrap_err());
+    assert!(e.contains("--connect \"nonsense\" is not a Zenoh endpoint"), "{e}");
+    let options = BusOptions { listen: vec!["tcp/127.0.0.1:7447".into()], ..Default::default() };
+    options.config().unwrap();
 }

@@ -4,7 +4,7 @@
 //! SNR convention: signal power over the power of the added white noise *within the
 //! 200 Hz – 6 kHz analysis band* (the full-band noise is 5.2 dB stronger at 48 kHz).
 
-mod common;
+use crate::common;
 
 use aim_dsp::{Config, Geometry, Output, Pipeline};
 use common::{add_noise, rms, to_tdm, PeriodicSignal, Rng};

@@ -1,7 +1,7 @@
 //! Snippets against an oracle: a pure tone's phase gives the stream's timing (the stamp plus
 //! the documented group delay), its amplitude the filters' gain; the stream is contiguous.
 
-mod common;
+use crate::common;
 
 use aim_dsp::snippet::{GROUP_DELAY_INPUT_SAMPLES, SNIPPET_LEN};
 use aim_dsp::{Config, Geometry, Output, Pipeline, Snippet};

@@ -7,7 +7,7 @@
 //! SNR convention: harmonic signal power over the power of the added white noise within
 //! 100 Hz – 4 kHz (the analysed band), per microphone.
 
-mod common;
+use crate::common;
 
 use aim_dsp::{Config, Geometry, Output, Peaks, Pipeline};
 use common::{add_noise, to_tdm, Rng};

@@ -1,7 +1,7 @@
 //! Streaming behaviour of the pipeline: chunking, rates, stamps, other geometries and rates,
 //! silence and clipping.
 
-mod common;
+use crate::common;
 
 use aim_dsp::{Config, Geometry, Output, Pipeline};
 use common::{add_noise, to_tdm, PeriodicSignal, Rng};

@@ -1,7 +1,7 @@
 //! Gaps in the input (`Pipeline::gap`): the sample clock jumps by the lost frames, outputs whose
 //! span would cross the gap are dropped and counted, everything else is untouched.
 
-mod common;
+use crate::common;
 
 use aim_dsp::{Config, Doa, Geometry, Output, Peaks, Pipeline};
 use common::{add_noise, to_tdm, PeriodicSignal, Rng};
