@@ -241,6 +241,52 @@ impl Survey {
         Self::fit(seed, site_text, truth_csv, reference_csv, array_ids, links)
     }
 
+    /// [`Survey::load`], refused if the survey says it was flown with a seed other than `seed`
+    /// (a stored survey reused for a suite or flight that asks for another). One that does not
+    /// say its seed is returned as it is, `seed` None.
+    pub fn load_seeded(dir: &std::path::Path, seed: u64) -> anyhow::Result<Self> {
+        let survey = Self::load(dir)?;
+        match survey.seed {
+            Some(s) if s != seed => {
+                anyhow::bail!("{} was surveyed with seed {s}, not {seed}", dir.display())
+            }
+            _ => Ok(survey),
+        }
+    }
+
+    /// Writes the survey to `dir` (created) as [`Survey::load`] reads it: its seed
+    /// (`survey.toml`), site file, the installer's reference (`reference.csv`), the truth
+    /// (`truth.csv`, scoring only), each array's frames (`frames-<id>.aimraw`, in scenario order)
+    /// and the calibrated site file `site-calibrated.toml`: `aim calibrate frames-<id>.aimraw
+    /// --reference reference.csv --site site.toml` gives the same.
+    pub fn store(&self, dir: &std::path::Path) -> anyhow::Result<()> {
+        use anyhow::Context as _;
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let write = |name: &str, bytes: &[u8]| {
+            std::fs::write(dir.join(name), bytes)
+                .with_context(|| format!("writing {}", dir.join(name).display()))
+        };
+        if let Some(seed) = self.seed {
+            write(
+                "survey.toml",
+                format!("# The zenith survey's seed (host_sim::survey).\nseed = {seed}\n")
+                    .as_bytes(),
+            )?;
+        }
+        write("site.toml", self.site_text.as_bytes())?;
+        write("truth.csv", self.truth_csv.as_bytes())?;
+        write("reference.csv", self.reference_csv.as_bytes())?;
+        for (id, bytes) in self.array_ids.iter().zip(&self.links) {
+            write(&format!("frames-{id}.aimraw"), bytes)?;
+        }
+        let calibrated = aim_tracker::zenith::site_with_corrections(
+            &self.site_text,
+            &dir.join("site.toml"),
+            &self.corrections(),
+        )?;
+        write("site-calibrated.toml", calibrated.as_bytes())
+    }
+
     /// The corrections by array id (empty for an array whose fit gave no point: a site file
     /// written with them has no correction for it, not an older one).
     pub fn corrections(&self) -> Vec<(u16, aim_tracker::zenith::ZenithCorrection)> {

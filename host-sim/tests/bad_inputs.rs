@@ -224,6 +224,24 @@ fn coordinates_of_the_wrong_count_are_refused_at_their_line() {
 }
 
 #[test]
+fn a_zenith_survey_on_the_flights_own_seed_is_refused_before_anything_is_written() {
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/square10-los.toml");
+    let out = scratch("same-seed");
+    // square10-los.toml flies seed 10.
+    let run = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("fly")
+        .arg(&scenario)
+        .args(["--zenith-survey", "10", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{stderr}");
+    assert!(stderr.contains("--zenith-survey 10 is the flight's own seed"), "{stderr}");
+    assert!(!out.exists(), "{} was created", out.display());
+}
+
+#[test]
 fn memory_is_estimated_and_a_run_past_the_limit_is_refused_up_front() {
     // The issue measured ~190 MB per simulated minute for one 6-mic array when the whole run
     // was held; streamed, a minute needs the flight log and the truth (~25 MB) and windows of

@@ -69,5 +69,25 @@ fn a_surveys_correction_brings_another_surveys_zenith_closer_to_the_truth() {
         zenith::site_with_corrections(&a.site_text, Path::new("site.toml"), &fitted).unwrap();
     let site = aim_tracker::site::Site::parse(&text, Path::new("site.toml")).unwrap();
     assert_eq!(site.array(1).unwrap().zenith_correction.to_toml_line(), correction.to_toml_line());
+
+    // Stored and read back, a survey is the same survey: its seed, its inputs, its fit.
+    let stored = dir.join("survey-a");
+    a.store(&stored).unwrap();
+    let back = Survey::load_seeded(&stored, 5).unwrap();
+    assert_eq!(back.seed, Some(5));
+    assert_eq!(back.reference_csv, a.reference_csv);
+    assert_eq!(back.links, a.links);
+    let lines = |s: &Survey| -> Vec<_> {
+        s.corrections().iter().map(|(id, c)| (*id, c.to_toml_line())).collect()
+    };
+    assert_eq!(lines(&back), lines(&a));
+    // Reused for another seed, it is refused by name; without its reference, refused too.
+    let Err(e) = Survey::load_seeded(&stored, 6) else { panic!("seed 6 accepted") };
+    let e = format!("{e:#}");
+    assert!(e.contains("surveyed with seed 5, not 6"), "{e}");
+    std::fs::remove_file(stored.join("reference.csv")).unwrap();
+    let Err(e) = Survey::load(&stored) else { panic!("loaded without its reference") };
+    let e = format!("{e:#}");
+    assert!(e.contains("has no reference.csv"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -556,6 +556,9 @@ struct SiteLines<'a> {
     lines: Vec<&'a str>,
     code: Vec<&'a str>,
     depth_before: Vec<i64>,
+    /// Whether the line starts inside a multi-line string (`"""` or `\'\'\'`) opened above it:
+    /// then it is text, never a header or a key.
+    in_string_before: Vec<bool>,
     newline: &'static str,
 }
 
@@ -564,50 +567,74 @@ impl<'a> SiteLines<'a> {
         let lines: Vec<&str> = text.lines().collect();
         let mut code = Vec::with_capacity(lines.len());
         let mut depth_before = Vec::with_capacity(lines.len());
+        let mut in_string_before = Vec::with_capacity(lines.len());
         let mut depth = 0i64;
+        // The delimiter of a multi-line string still open at the end of the line above.
+        let mut open: Option<&'static str> = None;
         for l in &lines {
             depth_before.push(depth);
-            let mut quote: Option<char> = None;
-            let mut end = l.len();
-            let mut escaped = false;
-            for (i, ch) in l.char_indices() {
+            in_string_before.push(open.is_some());
+            // Bytes: every delimiter is ASCII, and a cut at `#` is a char boundary.
+            let b = l.as_bytes();
+            let mut quote = open;
+            let mut end = b.len();
+            let mut i = 0;
+            while i < b.len() {
+                let rest = &b[i..];
                 match quote {
                     Some(q) => {
-                        if q == '"' && ch == '\\' && !escaped {
-                            escaped = true;
+                        if q.starts_with('"') && b[i] == b'\\' {
+                            i += 2;
                             continue;
                         }
-                        if ch == q && !escaped {
+                        if rest.starts_with(q.as_bytes()) {
+                            i += q.len();
                             quote = None;
+                            continue;
                         }
                     }
-                    None => match ch {
-                        '"' | '\'' => quote = Some(ch),
-                        '#' => {
-                            end = i;
-                            break;
+                    None => {
+                        if let Some(q) = ["\"\"\"", "\'\'\'", "\"", "\'"]
+                            .into_iter()
+                            .find(|q| rest.starts_with(q.as_bytes()))
+                        {
+                            quote = Some(q);
+                            i += q.len();
+                            continue;
                         }
-                        '[' => depth += 1,
-                        ']' => depth -= 1,
-                        _ => {}
-                    },
+                        match b[i] {
+                            b'#' => {
+                                end = i;
+                                break;
+                            }
+                            b'[' => depth += 1,
+                            b']' => depth -= 1,
+                            _ => {}
+                        }
+                    }
                 }
-                escaped = false;
+                i += 1;
             }
+            // A one-line string ends with its line; a multi-line one carries on.
+            open = quote.filter(|q| q.len() == 3);
             code.push(&l[..end]);
         }
         let newline = if text.contains("\r\n") { "\r\n" } else { "\n" };
-        Self { lines, code, depth_before, newline }
+        Self { lines, code, depth_before, in_string_before, newline }
     }
 
     /// Whether line `j` is a table header (`[...]` or `[[...]]` outside any value).
     fn is_header(&self, j: usize) -> bool {
-        self.depth_before[j] == 0 && self.code[j].trim_start().starts_with('[')
+        self.depth_before[j] == 0
+            && !self.in_string_before[j]
+            && self.code[j].trim_start().starts_with('[')
     }
 
     /// Whether line `j` is a `zenith_correction_deg` key outside any value.
     fn is_correction(&self, j: usize) -> bool {
-        self.depth_before[j] == 0 && self.key(j) == Some("zenith_correction_deg")
+        self.depth_before[j] == 0
+            && !self.in_string_before[j]
+            && self.key(j) == Some("zenith_correction_deg")
     }
 
     /// The key of line `j` (`key = value`), if it has one.
@@ -964,10 +991,21 @@ mod tests {
         // A multi-line array whose continuation lines start with `[`, a header with a
         // comment, a one-line empty correction, CRLF line ends.
         let text = "sample_rate_hz = 48000\r\n[[array]]  # north\r\nid = 1\r\nposition = [0.0, 0.0, 0.05]\r\npositions = [\r\n  [0.05, 0.0],\r\n  [0.0, 0.05],\r\n  [-0.05, 0.0],\r\n  [0.0, -0.05],\r\n]\r\nzenith_correction_deg = []\r\n\r\n[[array]]\r\nid = 2\r\nposition = [5.0, 0.0, 0.05]\r\nzenith_correction_deg = [[40.0, -1.0]]\r\n";
-        check_rewrite(text, p);
+        check_rewrite(text, p, 0);
+        // A multi-line string holding what looks like a header and a correction is text.
+        let text = "sample_rate_hz = 48000\n[[obstacle]]\nname = \"\"\"shelf\n[[array]]\nzenith_correction_deg = [[10.0, 9.0]]\n\"\"\"\nmin = [1.0, 1.0, 0.0]\nmax = [2.0, 2.0, 1.0]\n[[array]]  # north\nid = 1\nposition = [0.0, 0.0, 0.05]\npositions = [[0.05, 0.0], [0.0, 0.05], [-0.05, 0.0], [0.0, -0.05]]\n[[array]]\nid = 2\nposition = [5.0, 0.0, 0.05]\nzenith_correction_deg = [[40.0, -1.0]]\n[[obstacle]]\nname = '''\nzenith_correction_deg = [[1.0, 2.0]]'''\nmin = [3.0, 1.0, 0.0]\nmax = [4.0, 2.0, 1.0]\n".replace('\n', "\r\n");
+        check_rewrite(&text, p, 2);
+        let out = site_with_corrections(&text, p, &[(1, ZenithCorrection::default())]).unwrap();
+        let kept = "name = \"\"\"shelf\r\n[[array]]\r\nzenith_correction_deg = [[10.0, 9.0]]\r\n\"\"\"\r\n";
+        assert!(out.contains(kept), "{out}");
+        let bare = site_without_corrections(&text, p).unwrap();
+        assert!(bare.contains("zenith_correction_deg = [[10.0, 9.0]]"), "{bare}");
+        assert!(bare.contains("zenith_correction_deg = [[1.0, 2.0]]'''"), "{bare}");
+        assert_eq!(bare.matches("zenith_correction_deg").count(), 2, "{bare}");
     }
 
-    fn check_rewrite(text: &str, p: &Path) {
+    /// `in_strings`: how many `zenith_correction_deg` of `text` are inside strings (they stay).
+    fn check_rewrite(text: &str, p: &Path, in_strings: usize) {
         Site::parse(text, p).unwrap();
         let c1 = ZenithCorrection::from_degrees(&[[30.0, -1.0], [70.0, -5.0]]).unwrap();
         let out = site_with_corrections(text, p, &[(1, c1.clone())]).unwrap();
@@ -982,6 +1020,7 @@ mod tests {
         assert!(site.array(2).unwrap().zenith_correction.is_empty(), "{out:?}");
         assert_eq!(site.array(1).unwrap().zenith_correction, c1);
         let bare = site_without_corrections(&out, p).unwrap();
-        assert!(!bare.contains("zenith_correction_deg") && bare.contains("\r\n"), "{bare:?}");
+        assert_eq!(bare.matches("zenith_correction_deg").count(), in_strings, "{bare:?}");
+        assert!(bare.contains("\r\n"), "{bare:?}");
     }
 }

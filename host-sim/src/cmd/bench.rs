@@ -494,27 +494,21 @@ fn zenith_surveys(
                     .map(|from| from.join("zenith-survey").join(&fam.name))
                     .filter(|d| d.join("truth.csv").is_file());
                 let survey = match stored {
-                    Some(dir) => host_sim::survey::Survey::load(&dir).and_then(|sv| {
-                        match sv.seed {
-                            Some(s) if s != seed => anyhow::bail!(
-                                "{} was surveyed with seed {s}, the suite asks for {seed}",
-                                dir.display()
-                            ),
-                            None => eprintln!(
+                    Some(dir) => host_sim::survey::Survey::load_seeded(&dir, seed).inspect(|sv| {
+                        if sv.seed.is_none() {
+                            eprintln!(
                                 "warning: {} does not say its seed (stored before \
                                  survey.toml); re-fitted as it is",
                                 dir.display()
-                            ),
-                            Some(_) => {}
+                            )
                         }
-                        Ok(sv)
                     }),
                     None => Scenario::load_with(&fam.scenario, seed, &fam.overrides)
                         .and_then(|sc| host_sim::survey::calibrate(&sc, seed, 1)),
                 };
                 let survey = survey.and_then(|sv| {
                     let dir = args.out.join("zenith-survey").join(&fam.name);
-                    super::fly::store_survey(&dir, &sv)?;
+                    sv.store(&dir)?;
                     Ok(sv)
                 });
                 done.lock().expect("no panic holds it").push((fam.name.clone(), survey));
@@ -739,6 +733,17 @@ scenario = "square10-los.toml"
             .unwrap_err()
             .to_string();
         assert!(e.contains("x.toml:8: family[1].name `a` appears twice"), "{e}");
+        // The survey's seed is its own: a flight's would repeat that flight's noise and drone.
+        for z in [1, 4] {
+            let survey = format!("zenith_survey_seed = {z}\n{ok}");
+            let e = Suite::parse(&survey, &scenarios().join("x.toml")).unwrap_err().to_string();
+            assert!(e.contains(&format!("zenith_survey_seed {z} is also a flight's seed")), "{e}");
+        }
+        let own = format!("zenith_survey_seed = 9\n{ok}");
+        assert_eq!(
+            Suite::parse(&own, &scenarios().join("x.toml")).unwrap().zenith_survey_seed,
+            Some(9)
+        );
     }
 
     #[test]

@@ -124,6 +124,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         aim_tracker::tracker::check_filter_arrays(kind, scenario.arrays.len(), !args.no_fuse)
             .with_context(|| format!("{}: --filter", args.scenario.display()))?;
     }
+    if let Some(seed) = args.zenith_survey.filter(|&s| s == scenario.seed) {
+        anyhow::bail!(
+            "--zenith-survey {seed} is the flight's own seed ({}): a survey needs a seed of its \
+             own, or its noise would repeat the flight's",
+            args.scenario.display()
+        );
+    }
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("fly-{}", scenario.name)));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let profile = match &args.profile {
@@ -133,19 +140,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let zenith = match args.zenith_survey {
         Some(seed) => {
-            if seed == scenario.seed {
-                anyhow::bail!(
-                    "--zenith-survey {seed} is the flight's own seed ({}): a survey needs a seed \
-                     of its own, or its noise would repeat the flight's",
-                    args.scenario.display()
-                );
-            }
             let progress = host_sim::progress_bar("zenith survey");
             let survey = host_sim::survey::calibrate(&scenario, seed, args.threads)
                 .with_context(|| format!("{}: the zenith survey", args.scenario.display()))?;
             progress.finish_and_clear();
             let dir = out.join("zenith-survey");
-            store_survey(&dir, &survey)?;
+            survey.store(&dir)?;
             for f in &survey.fits {
                 eprintln!(
                     "zenith survey: array {}: {} frames, {} points ({})",
@@ -239,36 +239,6 @@ pub(crate) fn track(
     let recorded =
         Recorded { site_text, site: sim.site.clone(), truth: sim.truth.clone(), raw_paths };
     track_recorded(&recorded, out, how)
-}
-
-/// Stores a zenith survey in `dir`: its seed (`survey.toml`), site file, the installer's
-/// reference (`reference.csv`), the truth (`truth.csv`, scoring only), each array's frames
-/// (`frames-<id>.aimraw`, in scenario order) and the calibrated site file `site-calibrated.toml`:
-/// `aim calibrate frames-<id>.aimraw --reference reference.csv --site site.toml` gives the same.
-pub(crate) fn store_survey(dir: &Path, survey: &host_sim::survey::Survey) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let write = |name: &str, bytes: &[u8]| {
-        std::fs::write(dir.join(name), bytes)
-            .with_context(|| format!("writing {}", dir.join(name).display()))
-    };
-    if let Some(seed) = survey.seed {
-        write(
-            "survey.toml",
-            format!("# The zenith survey's seed (host_sim::survey).\nseed = {seed}\n").as_bytes(),
-        )?;
-    }
-    write("site.toml", survey.site_text.as_bytes())?;
-    write("truth.csv", survey.truth_csv.as_bytes())?;
-    write("reference.csv", survey.reference_csv.as_bytes())?;
-    for (id, bytes) in survey.array_ids.iter().zip(&survey.links) {
-        write(&format!("frames-{id}.aimraw"), bytes)?;
-    }
-    let calibrated = aim_tracker::zenith::site_with_corrections(
-        &survey.site_text,
-        &dir.join("site.toml"),
-        &survey.corrections(),
-    )?;
-    write("site-calibrated.toml", calibrated.as_bytes())
 }
 
 /// The site file's text with `how.zenith`'s corrections (without any: its own, or none with
