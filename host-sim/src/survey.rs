@@ -266,6 +266,10 @@ impl Survey {
             std::fs::write(dir.join(name), bytes)
                 .with_context(|| format!("writing {}", dir.join(name).display()))
         };
+        if self.seed.is_none() {
+            // No seed to store: an older survey.toml in `dir` would name another survey's.
+            let _ = std::fs::remove_file(dir.join("survey.toml"));
+        }
         if let Some(seed) = self.seed {
             write(
                 "survey.toml",

@@ -588,7 +588,14 @@ impl<'a> SiteLines<'a> {
                             continue;
                         }
                         if rest.starts_with(q.as_bytes()) {
-                            i += q.len();
+                            // A multi-line string may end in one or two of its quotes just
+                            // before the delimiter (`"""a """"`): the run's last three close it.
+                            let run = if q.len() == 3 {
+                                rest.iter().take(5).take_while(|&&c| c == q.as_bytes()[0]).count()
+                            } else {
+                                1
+                            };
+                            i += run;
                             quote = None;
                             continue;
                         }
@@ -720,7 +727,7 @@ pub fn site_with_corrections(
         }
         let end = (i + 1..n).find(|&j| s.is_header(j)).unwrap_or(n);
         let id = (i + 1..end).find_map(|j| {
-            (s.depth_before[j] == 0 && s.key(j) == Some("id"))
+            (s.depth_before[j] == 0 && !s.in_string_before[j] && s.key(j) == Some("id"))
                 .then(|| s.code[j].split_once('=')?.1.trim().parse::<u16>().ok())?
         });
         let new = id.and_then(|id| corrections.iter().find(|c| c.0 == id));
@@ -1002,6 +1009,17 @@ mod tests {
         assert!(bare.contains("zenith_correction_deg = [[10.0, 9.0]]"), "{bare}");
         assert!(bare.contains("zenith_correction_deg = [[1.0, 2.0]]'''"), "{bare}");
         assert_eq!(bare.matches("zenith_correction_deg").count(), 2, "{bare}");
+    }
+
+    #[test]
+    fn a_multi_line_string_may_end_in_its_own_quotes() {
+        let p = Path::new("site.toml");
+        // `""""`: the text ends in a quote; the comment after it, with its bracket, is a comment.
+        let text = "sample_rate_hz = 48000\n[[obstacle]]\nname = \"\"\"say \"hi\"\"\"\"  # a 5\" shelf [old\nmin = [1.0, 1.0, 0.0]\nmax = [2.0, 2.0, 1.0]\n[[array]]\nid = 1\nposition = [0.0, 0.0, 0.05]\npositions = [[0.05, 0.0], [0.0, 0.05], [-0.05, 0.0], [0.0, -0.05]]\n";
+        Site::parse(text, p).unwrap();
+        let c = ZenithCorrection::from_degrees(&[[30.0, -1.0], [70.0, -5.0]]).unwrap();
+        let out = site_with_corrections(text, p, &[(1, c.clone())]).unwrap();
+        assert_eq!(Site::parse(&out, p).unwrap().array(1).unwrap().zenith_correction, c);
     }
 
     /// `in_strings`: how many `zenith_correction_deg` of `text` are inside strings (they stay).
