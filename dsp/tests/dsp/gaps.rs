@@ -4,7 +4,7 @@
 use crate::common;
 
 use aim_dsp::{Config, Doa, Geometry, Output, Peaks, Pipeline};
-use common::{add_noise, to_tdm, PeriodicSignal, Rng};
+use common::{doas, to_tdm};
 
 const SLOTS: usize = 8;
 const AZ_DEG: f64 = 70.0;
@@ -12,30 +12,9 @@ const ZEN_DEG: f64 = 40.0;
 
 /// A plane wave of band-limited noise plus a harmonic comb from (AZ_DEG, ZEN_DEG), 48 kHz.
 fn plane_wave(geometry: &Geometry, frames: usize, seed: u64) -> Vec<i32> {
-    let fs = 48_000.0;
-    let mut rng = Rng::new(seed);
-    let mut s = PeriodicSignal::new(frames);
-    s.add_broadband(fs, 150.0, 7_000.0, 0.02, &mut rng);
-    let comb = frames * 250 / fs as usize; // a bin near 250 Hz
-    for h in 1..=8 {
-        s.add_tone_bin(comb * h, 0.02, rng.uniform() * std::f64::consts::TAU);
-    }
-    let (az, zen) = (AZ_DEG.to_radians(), ZEN_DEG.to_radians());
-    let u = [zen.sin() * az.cos(), zen.sin() * az.sin()];
-    let channels: Vec<Vec<f64>> = geometry
-        .positions()
-        .iter()
-        .map(|p| {
-            let mut x = s.delayed(-(p[0] as f64 * u[0] + p[1] as f64 * u[1]) / 343.0 * fs);
-            add_noise(&mut x, 0.004, &mut rng);
-            x
-        })
-        .collect();
+    let channels =
+        common::plane_wave(geometry, 48_000.0, frames, (AZ_DEG, ZEN_DEG), 250, 7_000.0, seed);
     to_tdm(&channels, SLOTS)
-}
-
-fn doas(outputs: &[Output]) -> Vec<Doa> {
-    outputs.iter().filter_map(|o| if let Output::Doa(d) = o { Some(*d) } else { None }).collect()
 }
 
 fn peaks(outputs: &[Output]) -> Vec<Peaks> {

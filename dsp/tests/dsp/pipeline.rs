@@ -4,9 +4,9 @@
 use crate::common;
 
 use aim_dsp::{Config, Geometry, Output, Pipeline};
-use common::{add_noise, to_tdm, PeriodicSignal, Rng};
+use common::{doas, to_tdm, Rng};
 
-/// A plane wave of band-limited noise plus a 448-bin harmonic comb, 20 dB SNR, exact delays.
+/// A plane wave of band-limited noise plus a harmonic comb near 328 Hz, 20 dB SNR, exact delays.
 fn plane_wave(
     geometry: &Geometry,
     fs: f64,
@@ -15,29 +15,8 @@ fn plane_wave(
     zen_deg: f64,
     seed: u64,
 ) -> Vec<i32> {
-    let mut rng = Rng::new(seed);
-    let mut s = PeriodicSignal::new(n);
-    s.add_broadband(fs, 150.0, fs.min(16_000.0) * 0.45, 0.02, &mut rng);
-    let comb = n * 328 / fs as usize; // a bin near 328 Hz
-    for h in 1..=8 {
-        s.add_tone_bin(comb * h, 0.02, rng.uniform() * std::f64::consts::TAU);
-    }
-    let (az, zen) = (az_deg.to_radians(), zen_deg.to_radians());
-    let u = [zen.sin() * az.cos(), zen.sin() * az.sin()];
-    let channels: Vec<Vec<f64>> = geometry
-        .positions()
-        .iter()
-        .map(|p| {
-            let mut x = s.delayed(-(p[0] as f64 * u[0] + p[1] as f64 * u[1]) / 343.0 * fs);
-            add_noise(&mut x, 0.004, &mut rng);
-            x
-        })
-        .collect();
-    to_tdm(&channels, 8)
-}
-
-fn doas(outputs: &[Output]) -> Vec<aim_dsp::Doa> {
-    outputs.iter().filter_map(|o| if let Output::Doa(d) = o { Some(*d) } else { None }).collect()
+    let high_hz = fs.min(16_000.0) * 0.45;
+    to_tdm(&common::plane_wave(geometry, fs, n, (az_deg, zen_deg), 328, high_hz, seed), 8)
 }
 
 #[test]

@@ -120,3 +120,44 @@ pub fn run(pipeline: &mut aim_dsp::Pipeline, words: &[i32]) -> Vec<aim_dsp::Outp
     }
     out
 }
+
+/// Channels of a plane wave from (`az_deg`, `zen_deg`) over `geometry`'s microphones, exact
+/// delays at 343 m/s: band-limited noise (150 Hz to `high_hz`, rms 0.02) plus 8 harmonics of the
+/// bin nearest `f0_hz` (0.02 each, random phases), and 0.004 rms of noise per microphone.
+/// `frames` samples at `fs`, periodic, seeded by `seed`.
+pub fn plane_wave(
+    geometry: &aim_dsp::Geometry,
+    fs: f64,
+    frames: usize,
+    (az_deg, zen_deg): (f64, f64),
+    f0_hz: usize,
+    high_hz: f64,
+    seed: u64,
+) -> Vec<Vec<f64>> {
+    let mut rng = Rng::new(seed);
+    let mut s = PeriodicSignal::new(frames);
+    s.add_broadband(fs, 150.0, high_hz, 0.02, &mut rng);
+    let comb = frames * f0_hz / fs as usize;
+    for h in 1..=8 {
+        s.add_tone_bin(comb * h, 0.02, rng.uniform() * std::f64::consts::TAU);
+    }
+    let (az, zen) = (az_deg.to_radians(), zen_deg.to_radians());
+    let u = [zen.sin() * az.cos(), zen.sin() * az.sin()];
+    geometry
+        .positions()
+        .iter()
+        .map(|p| {
+            let mut x = s.delayed(-(p[0] as f64 * u[0] + p[1] as f64 * u[1]) / 343.0 * fs);
+            add_noise(&mut x, 0.004, &mut rng);
+            x
+        })
+        .collect()
+}
+
+/// The `Doa` outputs among `outputs`, in order.
+pub fn doas(outputs: &[aim_dsp::Output]) -> Vec<aim_dsp::Doa> {
+    outputs
+        .iter()
+        .filter_map(|o| if let aim_dsp::Output::Doa(d) = o { Some(*d) } else { None })
+        .collect()
+}
