@@ -630,18 +630,19 @@ impl<'a> SiteLines<'a> {
         Self { lines, code, depth_before, in_string_before, newline }
     }
 
+    /// Whether line `j` starts outside any value: no bracket and no multi-line string open.
+    fn at_top(&self, j: usize) -> bool {
+        self.depth_before[j] == 0 && !self.in_string_before[j]
+    }
+
     /// Whether line `j` is a table header (`[...]` or `[[...]]` outside any value).
     fn is_header(&self, j: usize) -> bool {
-        self.depth_before[j] == 0
-            && !self.in_string_before[j]
-            && self.code[j].trim_start().starts_with('[')
+        self.at_top(j) && self.code[j].trim_start().starts_with('[')
     }
 
     /// Whether line `j` is a `zenith_correction_deg` key outside any value.
     fn is_correction(&self, j: usize) -> bool {
-        self.depth_before[j] == 0
-            && !self.in_string_before[j]
-            && self.key(j) == Some("zenith_correction_deg")
+        self.at_top(j) && self.key(j) == Some("zenith_correction_deg")
     }
 
     /// The key of line `j` (`key = value`), if it has one.
@@ -727,7 +728,7 @@ pub fn site_with_corrections(
         }
         let end = (i + 1..n).find(|&j| s.is_header(j)).unwrap_or(n);
         let id = (i + 1..end).find_map(|j| {
-            (s.depth_before[j] == 0 && !s.in_string_before[j] && s.key(j) == Some("id"))
+            (s.at_top(j) && s.key(j) == Some("id"))
                 .then(|| s.code[j].split_once('=')?.1.trim().parse::<u16>().ok())?
         });
         let new = id.and_then(|id| corrections.iter().find(|c| c.0 == id));
