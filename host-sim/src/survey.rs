@@ -266,16 +266,16 @@ impl Survey {
             std::fs::write(dir.join(name), bytes)
                 .with_context(|| format!("writing {}", dir.join(name).display()))
         };
-        if self.seed.is_none() {
-            // No seed to store: an older survey.toml in `dir` would name another survey's.
-            let _ = std::fs::remove_file(dir.join("survey.toml"));
-        }
-        if let Some(seed) = self.seed {
-            write(
+        match self.seed {
+            Some(seed) => write(
                 "survey.toml",
                 format!("# The zenith survey's seed (host_sim::survey).\nseed = {seed}\n")
                     .as_bytes(),
-            )?;
+            )?,
+            // No seed to store: an older survey.toml in `dir` would name another survey's.
+            None => {
+                let _ = std::fs::remove_file(dir.join("survey.toml"));
+            }
         }
         write("site.toml", self.site_text.as_bytes())?;
         write("truth.csv", self.truth_csv.as_bytes())?;
