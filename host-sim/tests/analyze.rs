@@ -193,3 +193,89 @@ fn a_mono_clip_runs_the_bpf_path_and_skips_doa() {
     assert!(bpfs.len() >= 3 && bpfs.iter().all(|b| (b - 240.0).abs() < 0.1), "{bpfs:?}");
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--frames`: the bytes a board would send for the recording. They decode without error into
+/// a Hello of the array and one frame per printed output, with the printed values; and `aim
+/// calibrate` reads them against a reference at the true direction (the product's survey
+/// path) and finds no bias beyond the pipeline's free-field accuracy.
+#[test]
+fn analyze_writes_the_links_frames_and_aim_calibrate_reads_them() {
+    let dir = scratch_dir("frames");
+    let wav = dir.join("array-1.wav");
+    write_recording(&wav);
+    let raw = dir.join("frames-3.aimraw");
+    let out = analyze(&[
+        wav.to_str().unwrap(),
+        "--array",
+        "respeaker6",
+        "--jsonl",
+        "--frames",
+        raw.to_str().unwrap(),
+        "--id",
+        "3",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let printed: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let (frames, errors) = host_sim::eval::link::decode_frames(&std::fs::read(&raw).unwrap());
+    assert_eq!(errors, 0);
+    assert!(frames.iter().all(|f| f.header.array_id == 3));
+    let aim_wire::Body::Hello(hello) = &frames[0].body else {
+        panic!("the first frame is not a Hello: {:?}", frames[0])
+    };
+    assert_eq!((hello.sample_rate_hz, hello.mic_positions_decimm.len()), (FS, 6));
+    // 0.0463 m is 463 tenths of a millimetre.
+    assert_eq!(hello.mic_positions_decimm[0], [463, 0]);
+    let doa: Vec<_> = frames
+        .iter()
+        .filter_map(|f| match &f.body {
+            aim_wire::Body::Doa(d) => Some((f.header.sample_index, *d)),
+            _ => None,
+        })
+        .collect();
+    let printed_doa: Vec<_> = printed.iter().filter(|v| v["kind"] == "doa").collect();
+    assert_eq!(doa.len(), printed_doa.len());
+    for ((index, d), p) in doa.iter().zip(&printed_doa) {
+        assert!((*index as f64 / f64::from(FS) - p["t"].as_f64().unwrap()).abs() < 1e-9);
+        // The wire carries centidegrees.
+        let az = f64::from(d.azimuth_cdeg) / 100.0;
+        let zen = f64::from(d.zenith_cdeg) / 100.0;
+        assert!((az - p["azimuth_deg"].as_f64().unwrap()).abs() <= 0.006, "{az} {p}");
+        assert!((zen - p["zenith_deg"].as_f64().unwrap()).abs() <= 0.006, "{zen} {p}");
+    }
+    let count = |kind: &str| printed.iter().filter(|v| v["kind"] == kind).count();
+    let peaks = frames.iter().filter(|f| matches!(f.body, aim_wire::Body::Peaks(_))).count();
+    assert_eq!(peaks, count("peaks"));
+
+    // The source 5 m away along the true direction, the whole recording.
+    let (az, zen) = (AZIMUTH_DEG.to_radians(), ZENITH_DEG.to_radians());
+    let p = [5.0 * zen.sin() * az.cos(), 5.0 * zen.sin() * az.sin(), 5.0 * zen.cos()];
+    let reference = dir.join("reference.csv");
+    let rows: String =
+        (0..=15).map(|k| format!("{:.1},{},{},{}\n", k as f64 * 0.1, p[0], p[1], p[2])).collect();
+    std::fs::write(&reference, format!("t,x,y,z\n{rows}")).unwrap();
+    let site_text = "sample_rate_hz = 48000\nspeed_of_sound_mps = 343.0\n\n[[array]]\nid = 3\n\
+                     geometry = \"respeaker-6mic\"\nposition = [0.0, 0.0, 0.0]\nyaw_deg = 0.0\n";
+    let site = aim_tracker::site::Site::parse(site_text, "site.toml".as_ref()).unwrap();
+    let reference = aim_tracker::zenith::Reference::parse(
+        &std::fs::read_to_string(&reference).unwrap(),
+        &reference,
+    )
+    .unwrap();
+    let bytes = std::fs::read(&raw).unwrap();
+    let mut source = aim_tracker::link::FrameSource::new(&bytes[..]);
+    let (bearings, _) = aim_tracker::zenith::bearings_of(&site, &mut source).unwrap();
+    assert_eq!(bearings.len(), doa.len());
+    let config = aim_tracker::zenith::FitConfig { min_frames: 5, ..Default::default() };
+    let fits = aim_tracker::zenith::calibrate(&site, &[], &bearings, &reference, config);
+    assert_eq!(fits.len(), 1);
+    let points = fits[0].correction.to_degrees();
+    assert!(!points.is_empty(), "{fits:?}");
+    for [measured, bias] in points {
+        assert!((measured - ZENITH_DEG).abs() <= 5.0 && bias.abs() < 1.0, "{fits:?}");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -18,6 +18,12 @@
 //!
 //! `t` is the time of the first sample the output describes (sample index / sample rate, s);
 //! `span_s` the duration it covers. Without `--jsonl` the same is printed as aligned text.
+//!
+//! With `--frames FILE` the outputs are also written as the board would send them over its
+//! link (a `Hello`, then one frame per output, encoded by `aim_wire::from_dsp` as the firmware
+//! encodes them), the bytes `aim record` stores: `aim frames`, `aim replay` and `aim calibrate`
+//! read them. A recording made during a survey thus calibrates a site (`aim calibrate FILE
+//! --reference ... --site ...`).
 use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 
@@ -46,6 +52,14 @@ pub struct Args {
     /// Sound pressure that maps to digital full scale for float recordings, Pa.
     #[arg(long, default_value_t = host_sim::DEFAULT_FULL_SCALE_PA)]
     full_scale_pa: f64,
+    /// Also write the frames the board would send for this recording (a Hello, then one frame
+    /// per output) to this file, as `aim record` stores a link: for `aim frames`, `aim
+    /// replay`, `aim calibrate`.
+    #[arg(long, value_name = "FILE")]
+    frames: Option<PathBuf>,
+    /// The array id written into `--frames` (the site file's `[[array]] id`).
+    #[arg(long, default_value_t = 1, requires = "frames")]
+    id: u8,
 }
 
 /// Runs `host-sim analyze`.
@@ -90,8 +104,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let progress = progress_bar(u64::from(reader.duration()))?;
     let stdout = std::io::stdout();
     let mut out = BufWriter::new(stdout.lock());
+    let link = match &args.frames {
+        Some(path) => Some(LinkFile::create(path, args.id, &config)?),
+        None => None,
+    };
     let mut printer =
-        Printer { fs, jsonl: args.jsonl, error: None, counts: [0; 3], skip_doa: mono };
+        Printer { fs, jsonl: args.jsonl, error: None, counts: [0; 3], skip_doa: mono, link };
     let mut feed = Feed {
         channels,
         copies: if mono { geometry.len() } else { 1 },
@@ -135,6 +153,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let (frames, slot) = feed.finish(&mut out)?;
     out.flush().context("writing to stdout")?;
+    if let Some(link) = printer.link.take() {
+        link.finish()?;
+    }
     progress.finish_and_clear();
     if slot != 0 {
         eprintln!("warning: the recording ends inside a frame ({slot} of {channels} channels)");
@@ -190,8 +211,11 @@ impl Feed<'_> {
         let printer = &mut *self.printer;
         self.pipeline.push(&self.words, &mut |o| printer.print(out, o));
         self.words.clear();
-        match printer.error.take() {
-            Some(e) => Err(e).context("writing to stdout"),
+        if let Some(e) = printer.error.take() {
+            return Err(e).context("writing to stdout");
+        }
+        match printer.link.as_mut().and_then(|l| l.error.take()) {
+            Some(e) => Err(e),
             None => Ok(()),
         }
     }
@@ -249,6 +273,64 @@ impl Converter {
     }
 }
 
+/// `--frames`: the link's bytes, written as the pipeline gives its outputs.
+struct LinkFile {
+    path: PathBuf,
+    file: BufWriter<std::fs::File>,
+    encoder: aim_wire::Encoder,
+    /// A recording has no firmware: its counters stay zero.
+    firmware: aim_wire::from_dsp::FirmwareCounters,
+    /// The first error (writing or encoding).
+    error: Option<anyhow::Error>,
+}
+
+impl LinkFile {
+    /// Creates `path` and writes the board's `Hello` (array `id`, the recording's geometry and
+    /// rate).
+    fn create(path: &Path, id: u8, config: &Config) -> anyhow::Result<Self> {
+        let file = std::fs::File::create(path)
+            .with_context(|| format!("--frames: creating {}", path.display()))?;
+        let mut link = Self {
+            path: path.to_owned(),
+            file: BufWriter::new(file),
+            encoder: aim_wire::Encoder::new(id),
+            firmware: aim_wire::from_dsp::FirmwareCounters::default(),
+            error: None,
+        };
+        let hello = aim_wire::from_dsp::hello(config, host_sim::eval::link::SIM_FIRMWARE_VERSION);
+        let mut buf = [0u8; aim_wire::MAX_ENCODED_LEN];
+        let n = link
+            .encoder
+            .encode(0, aim_wire::Body::Hello(hello), &mut buf)
+            .map_err(|e| anyhow::anyhow!("encoding the Hello: {e:?}"))?;
+        link.file.write_all(&buf[..n]).with_context(|| format!("writing {}", path.display()))?;
+        Ok(link)
+    }
+
+    /// One output as the firmware sends it.
+    fn send(&mut self, output: &Output) {
+        if self.error.is_some() {
+            return;
+        }
+        let mut buf = [0u8; aim_wire::MAX_ENCODED_LEN];
+        let sent =
+            aim_wire::from_dsp::encode_output(&mut self.encoder, output, &self.firmware, &mut buf)
+                .map_err(|e| anyhow::anyhow!("encoding a frame: {e:?}"))
+                .and_then(|n| Ok(self.file.write_all(&buf[..n])?));
+        if let Err(e) = sent {
+            self.error = Some(e.context(format!("--frames {}", self.path.display())));
+        }
+    }
+
+    /// Flushes the file; the first error met on the way, if any.
+    fn finish(mut self) -> anyhow::Result<()> {
+        if let Some(e) = self.error {
+            return Err(e);
+        }
+        self.file.flush().with_context(|| format!("writing {}", self.path.display()))
+    }
+}
+
 /// Prints pipeline outputs; keeps the first write error (the pipeline's sink cannot fail).
 struct Printer {
     fs: f64,
@@ -257,12 +339,19 @@ struct Printer {
     counts: [usize; 3],
     /// Leave DoA outputs out (a mono clip fed to every microphone).
     skip_doa: bool,
+    /// `--frames`: every output that is printed (and the snippets) is also sent here.
+    link: Option<LinkFile>,
 }
 
 impl Printer {
     fn print(&mut self, out: &mut impl std::io::Write, o: Output) {
         if self.error.is_some() {
             return;
+        }
+        if let Some(link) = &mut self.link {
+            if !(self.skip_doa && matches!(o, Output::Doa(_))) {
+                link.send(&o);
+            }
         }
         let line = match o {
             Output::Doa(_) if self.skip_doa => return,
