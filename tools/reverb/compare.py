@@ -10,7 +10,17 @@ sound and the room filling up) are skipped for both. Prints per-condition (array
 and p90 absolute azimuth and zenith error and the median signed zenith error (bias), and
 writes every frame to DIR/frames.jsonl.
 
+With --survey SDIR (the surveys of survey.py, one per array, room and RT60, each with the site
+`aim calibrate` wrote from the chip's frames) two more rows per condition: AIM+CAL, the first
+host-sim's zenith corrected by its room's calibrated site as the tracker corrects it
+(`zenith_correction_deg`: linear between points, the end points' bias beyond, the result kept
+within 0-90 deg), and SRP+CAL, SRP-PHAT's zenith corrected by a calibration fitted the same way
+on SRP-PHAT's own estimates of the same survey (5 deg bins of measured zenith, the median of
+measured - true in each bin of at least 20 frames whose median absolute deviation is at most
+3 deg: `aim calibrate`'s defaults), so that the two methods get the same help.
+
     python3 tools/reverb/compare.py --dir /tmp/reverb --host-sim target/release/host-sim
+    python3 tools/reverb/compare.py --dir /tmp/reverb --survey /tmp/reverb-survey
 """
 import argparse
 import json
@@ -105,6 +115,70 @@ def check_pra(array, x):
     return np.degrees(doa.azimuth_recon[0]), np.degrees(doa.colatitude_recon[0])
 
 
+def read_correction(site_path):
+    """`zenith_correction_deg = [[measured, bias], ...]` of a site file's only array, degrees."""
+    for line in open(site_path):
+        if line.startswith("zenith_correction_deg"):
+            return json.loads(line.split("=", 1)[1])
+    raise SystemExit(f"{site_path}: no zenith_correction_deg (did aim calibrate fit it?)")
+
+
+def correct(points, zen_deg):
+    """A measured zenith (0-90 deg) corrected as aim_tracker::zenith::ZenithCorrection::correct."""
+    if not points:
+        return zen_deg
+    zs = [p[0] for p in points]
+    bs = [p[1] for p in points]
+    bias = float(np.interp(zen_deg, zs, bs))  # the end points' bias beyond them
+    return min(max(zen_deg - bias, 0.0), 90.0)
+
+
+def fit_points(measured, true, bin_deg=5.0, min_frames=20, max_mad_deg=3.0):
+    """Per bin of measured zenith, the median of measured - true (aim calibrate's rule)."""
+    bins = defaultdict(list)
+    for m, t in zip(measured, true):
+        bins[int(np.floor(m / bin_deg))].append(m - t)
+    points = []
+    for k in sorted(bins):
+        e = np.array(bins[k])
+        med = float(np.median(e))
+        if e.size >= min_frames and np.median(np.abs(e - med)) <= max_mad_deg:
+            points.append([(k + 0.5) * bin_deg, med])
+    return points
+
+
+def reference_at(ref, t):
+    """Where the survey's drone was at t (the row at or before t)."""
+    i = max(0, int(np.searchsorted(ref[:, 0], t, side="right")) - 1)
+    return ref[i, 1:]
+
+
+def srp_survey_points(survey_dir, array, host_sim, grid_deg):
+    """SRP-PHAT's own calibration from the survey: cached in SURVEY/srp-correction.json."""
+    cache = os.path.join(survey_dir, "srp-correction.json")
+    if os.path.exists(cache):
+        return json.load(open(cache))
+    wav = os.path.join(survey_dir, "survey.wav")
+    x = read_wav(wav)
+    ref = np.loadtxt(os.path.join(survey_dir, "reference.csv"), delimiter=",", skiprows=1)
+    site = open(os.path.join(survey_dir, "site.toml")).read()
+    pos = json.loads(site.split("\nposition = ", 1)[1].split("\n", 1)[0])
+    srp = Srp(array, grid_deg)
+    measured, true = [], []
+    for fr in aim_frames(host_sim, wav, array):
+        s0 = int(round(fr["t"] * FS))
+        s1 = s0 + int(round(fr["span_s"] * FS))
+        if s1 > x.shape[1]:
+            continue
+        _, zen = srp.locate(x[:, s0:s1])
+        v = reference_at(ref, fr["t"] + fr["span_s"] / 2) - np.array(pos)
+        measured.append(zen)
+        true.append(np.degrees(np.arccos(v[2] / np.linalg.norm(v))))
+    points = fit_points(measured, true)
+    json.dump(points, open(cache, "w"))
+    return points
+
+
 def wrap(d):
     return (d + 180.0) % 360.0 - 180.0
 
@@ -126,11 +200,13 @@ def main():
     ap.add_argument("--check-pra", type=int, default=0,
                     help="also run pyroomacoustics' SRP on the first N windows and print both")
     ap.add_argument("--no-srp", action="store_true", help="AIM only (faster)")
+    ap.add_argument("--survey", help="surveys of survey.py: also AIM and SRP-PHAT calibrated")
     a = ap.parse_args()
     bins = [h.split("=", 1) if "=" in h else ["aim", h]
             for h in (a.host_sim or ["target/release/host-sim"])]
     cases = [json.loads(l) for l in open(os.path.join(a.dir, "cases.jsonl"))]
     srp = {}
+    calib = {}
     rows = []
     for c in cases:
         wav = os.path.join(a.dir, c["name"] + ".wav")
@@ -168,6 +244,22 @@ def main():
                     print(f"check {c['name']} t={fr['t']:.2f}: ours {az:.1f}/{zen:.1f}, "
                           f"pyroomacoustics {paz:.1f}/{pzen:.1f}, truth "
                           f"{c['azimuth_deg']:.1f}/{c['zenith_deg']:.1f}", flush=True)
+            if a.survey:
+                sdir = os.path.join(a.survey, f"{c['array']}-{c['room']}-rt{c['rt60_target_s']:.1f}")
+                if sdir not in calib:
+                    calib[sdir] = (
+                        read_correction(os.path.join(sdir, "site-calibrated.toml")),
+                        None if a.no_srp else srp_survey_points(sdir, c["array"], bins[0][1], a.grid_deg),
+                    )
+                aim_pts, srp_pts = calib[sdir]
+                if first + "_zen_err" in row:
+                    zen = row[first + "_zen_err"] + c["zenith_deg"]
+                    row[first + "+cal_az_err"] = row[first + "_az_err"]
+                    row[first + "+cal_zen_err"] = correct(aim_pts, zen) - c["zenith_deg"]
+                if "srp_zen_err" in row and srp_pts is not None:
+                    zen = row["srp_zen_err"] + c["zenith_deg"]
+                    row["srp+cal_az_err"] = row["srp_az_err"]
+                    row["srp+cal_zen_err"] = correct(srp_pts, zen) - c["zenith_deg"]
             rows.append(row)
     with open(os.path.join(a.dir, "frames.jsonl"), "w") as f:
         for r in rows:
@@ -176,6 +268,8 @@ def main():
     for r in rows:
         groups[(r["array"], r["rt60"])].append(r)
     methods = [label for label, _ in bins] + ([] if a.no_srp else ["srp"])
+    if a.survey:
+        methods += [bins[0][0] + "+cal"] + ([] if a.no_srp else ["srp+cal"])
     print("| array | RT60 | cases/frames | method | azimuth median (p90) | zenith median (p90) | zenith bias |")
     print("|---|---|---|---|---|---|---|")
     for (array, rt60), g in sorted(groups.items()):
