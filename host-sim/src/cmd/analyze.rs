@@ -500,7 +500,8 @@ fn preset(name: &str) -> Option<Geometry> {
 #[serde(deny_unknown_fields)]
 struct ArrayFile {
     geometry: Option<toml::Spanned<String>>,
-    positions: Option<toml::Spanned<Vec<[f32; 2]>>>,
+    /// Exactly two numbers per microphone (serde alone reads `[x, y, z]` as `[x, y]`).
+    positions: Option<toml::Spanned<Vec<aim_tracker::config::Coords<2>>>>,
 }
 
 fn parse_array_file(text: &str) -> anyhow::Result<Geometry> {
@@ -525,8 +526,12 @@ fn parse_array_file(text: &str) -> anyhow::Result<Geometry> {
                 g.get_ref()
             )
         }),
-        (None, Some(p)) => Geometry::from_positions(p.get_ref())
-            .map_err(|e| anyhow::anyhow!("line {}: positions: {e}", line_of(p.span().start))),
+        (None, Some(p)) => {
+            let xy: Vec<[f32; 2]> =
+                p.get_ref().iter().map(|c| [c[0] as f32, c[1] as f32]).collect();
+            Geometry::from_positions(&xy)
+                .map_err(|e| anyhow::anyhow!("line {}: positions: {e}", line_of(p.span().start)))
+        }
     }
 }
 
@@ -552,6 +557,13 @@ mod tests {
             parse_array_file("positions = [[0.0, 0.0],\n [0.1, \"x\"]]").unwrap_err()
         );
         assert!(e.contains("line 2"), "{e}");
+        // A third number is refused at its line, not dropped.
+        let e = format!(
+            "{:#}",
+            parse_array_file("positions = [[0.0, 0.0],\n [0.1, 0.0, 1.0], [0.1, 0.1], [0.0, 0.1]]")
+                .unwrap_err()
+        );
+        assert!(e.contains("line 2") && e.contains("2 numbers"), "{e}");
         let e = format!("{:#}", parse_array_file("\ngeometry = \"hexagon\"").unwrap_err());
         assert!(e.contains("line 2") && e.contains("hexagon"), "{e}");
         let e = format!("{:#}", parse_array_file("radius = 3").unwrap_err());
