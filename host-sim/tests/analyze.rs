@@ -279,3 +279,42 @@ fn analyze_writes_the_links_frames_and_aim_calibrate_reads_them() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--frames` on a recording cut short: the run fails naming the cut, no `FILE` appears that
+/// could pass for a whole recording's frames, and the frames of the audio read before the cut
+/// are kept in `FILE.part`: as many directions as were printed.
+#[test]
+fn a_recording_cut_short_leaves_its_frames_in_a_part_file() {
+    let dir = scratch_dir("frames-cut");
+    let wav = dir.join("array-1.wav");
+    write_recording(&wav);
+    let bytes = std::fs::read(&wav).unwrap();
+    // The header still declares every sample; 60 % of the data remains.
+    std::fs::write(&wav, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    let raw = dir.join("frames-1.aimraw");
+    let out = analyze(&[
+        wav.to_str().unwrap(),
+        "--array",
+        "respeaker6",
+        "--jsonl",
+        "--frames",
+        raw.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("cut short") && stderr.contains("frames-1.aimraw.part"), "{stderr}");
+    assert!(!raw.exists());
+    let printed = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .filter(|l| l.contains(r#""kind":"doa""#))
+        .count();
+    let part = std::fs::read(dir.join("frames-1.aimraw.part")).unwrap();
+    let (frames, errors) = host_sim::eval::link::decode_frames(&part);
+    assert_eq!(errors, 0);
+    assert!(matches!(frames[0].body, aim_wire::Body::Hello(_)), "{:?}", frames[0]);
+    assert!(printed > 0);
+    let doa = frames.iter().filter(|f| matches!(f.body, aim_wire::Body::Doa(_))).count();
+    assert_eq!(doa, printed);
+    std::fs::remove_dir_all(dir).ok();
+}

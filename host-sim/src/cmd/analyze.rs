@@ -24,6 +24,8 @@
 //! encodes them), the bytes `aim record` stores: `aim frames`, `aim replay` and `aim calibrate`
 //! read them. A recording made during a survey thus calibrates a site (`aim calibrate FILE
 //! --reference ... --site ...`).
+//! The bytes go to `FILE.part`, renamed to `FILE` when the recording is through; a recording
+//! that fails half-way leaves its frames so far in `FILE.part` and no `FILE`.
 use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 
@@ -32,10 +34,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use aim_dsp::{Config, Geometry, Output, Pipeline};
 
-/// TDM slots per frame, as on the reference board.
-const TDM_SLOTS: usize = 8;
-/// Frames handed to the pipeline per call (a DMA half-buffer's worth).
-const CHUNK_FRAMES: usize = 256;
+use host_sim::eval::link::{BoardEncoder, CHUNK_FRAMES, TDM_SLOTS};
 
 /// Arguments of `host-sim analyze`.
 #[derive(clap::Args)]
@@ -132,27 +131,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (k / channels) as f64 / fs
         )
     };
-    if matches!(spec.sample_format, hound::SampleFormat::Float) {
-        for (k, s) in reader.samples::<f32>().enumerate() {
-            let x = s.map_err(|e| cut(k, e))?;
-            if !x.is_finite() {
-                // Not silence: a recording with NaN or infinite pressure is broken.
-                bail!(
-                    "{wav}: sample {} of channel {} ({:.6} s) is {x}, not a pressure",
-                    k / channels,
-                    k % channels,
-                    (k / channels) as f64 / fs
-                );
+    let fed = (|| -> anyhow::Result<(usize, usize)> {
+        if matches!(spec.sample_format, hound::SampleFormat::Float) {
+            for (k, s) in reader.samples::<f32>().enumerate() {
+                let x = s.map_err(|e| cut(k, e))?;
+                if !x.is_finite() {
+                    // Not silence: a recording with NaN or infinite pressure is broken.
+                    bail!(
+                        "{wav}: sample {} of channel {} ({:.6} s) is {x}, not a pressure",
+                        k / channels,
+                        k % channels,
+                        (k / channels) as f64 / fs
+                    );
+                }
+                feed.word(converter.float(x), &mut out)?;
             }
-            feed.word(converter.float(x), &mut out)?;
+        } else {
+            for (k, s) in reader.samples::<i32>().enumerate() {
+                feed.word(converter.int(s.map_err(|e| cut(k, e))?), &mut out)?;
+            }
         }
-    } else {
-        for (k, s) in reader.samples::<i32>().enumerate() {
-            feed.word(converter.int(s.map_err(|e| cut(k, e))?), &mut out)?;
-        }
-    }
-    let (frames, slot) = feed.finish(&mut out)?;
-    out.flush().context("writing to stdout")?;
+        let counts = feed.finish(&mut out)?;
+        out.flush().context("writing to stdout")?;
+        Ok(counts)
+    })();
+    let (frames, slot) = match fed {
+        Ok(counts) => counts,
+        Err(e) => match printer.link.take() {
+            Some(link) => {
+                let part = link.abandon();
+                eprintln!("note: the frames of the audio read so far are in {}", part.display());
+                return Err(e);
+            }
+            None => return Err(e),
+        },
+    };
     if let Some(link) = printer.link.take() {
         link.finish()?;
     }
@@ -273,38 +286,31 @@ impl Converter {
     }
 }
 
-/// `--frames`: the link's bytes, written as the pipeline gives its outputs.
+/// `--frames`: the link's bytes, written as the pipeline gives its outputs. They go to
+/// `FILE.part`, renamed to `FILE` once the whole recording is through: a recording that
+/// fails half-way leaves its frames so far in `FILE.part`, never a `FILE` that looks whole.
 struct LinkFile {
     path: PathBuf,
+    part: PathBuf,
     file: BufWriter<std::fs::File>,
-    encoder: aim_wire::Encoder,
-    /// A recording has no firmware: its counters stay zero.
-    firmware: aim_wire::from_dsp::FirmwareCounters,
+    encoder: BoardEncoder,
     /// The first error (writing or encoding).
     error: Option<anyhow::Error>,
 }
 
 impl LinkFile {
-    /// Creates `path` and writes the board's `Hello` (array `id`, the recording's geometry and
-    /// rate).
+    /// Creates `path`.part and writes the board's `Hello` (array `id`, the recording's
+    /// geometry and rate).
     fn create(path: &Path, id: u8, config: &Config) -> anyhow::Result<Self> {
-        let file = std::fs::File::create(path)
-            .with_context(|| format!("--frames: creating {}", path.display()))?;
-        let mut link = Self {
-            path: path.to_owned(),
-            file: BufWriter::new(file),
-            encoder: aim_wire::Encoder::new(id),
-            firmware: aim_wire::from_dsp::FirmwareCounters::default(),
-            error: None,
-        };
-        let hello = aim_wire::from_dsp::hello(config, host_sim::eval::link::SIM_FIRMWARE_VERSION);
-        let mut buf = [0u8; aim_wire::MAX_ENCODED_LEN];
-        let n = link
-            .encoder
-            .encode(0, aim_wire::Body::Hello(hello), &mut buf)
-            .map_err(|e| anyhow::anyhow!("encoding the Hello: {e:?}"))?;
-        link.file.write_all(&buf[..n]).with_context(|| format!("writing {}", path.display()))?;
-        Ok(link)
+        let mut part = path.as_os_str().to_owned();
+        part.push(".part");
+        let part = PathBuf::from(part);
+        let file = std::fs::File::create(&part)
+            .with_context(|| format!("--frames: creating {}", part.display()))?;
+        let (encoder, hello) = BoardEncoder::new(id, config)?;
+        let mut file = BufWriter::new(file);
+        file.write_all(&hello).with_context(|| format!("writing {}", part.display()))?;
+        Ok(Self { path: path.to_owned(), part, file, encoder, error: None })
     }
 
     /// One output as the firmware sends it.
@@ -313,21 +319,31 @@ impl LinkFile {
             return;
         }
         let mut buf = [0u8; aim_wire::MAX_ENCODED_LEN];
-        let sent =
-            aim_wire::from_dsp::encode_output(&mut self.encoder, output, &self.firmware, &mut buf)
-                .map_err(|e| anyhow::anyhow!("encoding a frame: {e:?}"))
-                .and_then(|n| Ok(self.file.write_all(&buf[..n])?));
+        let sent = self
+            .encoder
+            .encode(output, &mut buf)
+            .map_err(|e| anyhow::anyhow!("encoding a frame: {e:?}"))
+            .and_then(|n| Ok(self.file.write_all(&buf[..n])?));
         if let Err(e) = sent {
-            self.error = Some(e.context(format!("--frames {}", self.path.display())));
+            self.error = Some(e.context(format!("--frames {}", self.part.display())));
         }
     }
 
-    /// Flushes the file; the first error met on the way, if any.
+    /// Flushes what was written so far to `FILE.part` (after an error elsewhere); its path.
+    fn abandon(mut self) -> PathBuf {
+        // The error that stopped the run is the one reported; this flush is best effort.
+        let _ = self.file.flush();
+        self.part
+    }
+
+    /// Flushes the file and renames it to `FILE`; the first error met on the way, if any.
     fn finish(mut self) -> anyhow::Result<()> {
         if let Some(e) = self.error {
             return Err(e);
         }
-        self.file.flush().with_context(|| format!("writing {}", self.path.display()))
+        self.file.flush().with_context(|| format!("writing {}", self.part.display()))?;
+        std::fs::rename(&self.part, &self.path)
+            .with_context(|| format!("renaming {} to {}", self.part.display(), self.path.display()))
     }
 }
 

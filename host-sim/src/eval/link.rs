@@ -10,9 +10,38 @@ use crate::ArrayRecording;
 /// TDM slots per frame, as on the reference board.
 pub const TDM_SLOTS: usize = 8;
 /// Frames handed to the pipeline per call (a DMA half-buffer's worth).
-const CHUNK_FRAMES: usize = 256;
+pub const CHUNK_FRAMES: usize = 256;
 /// Firmware version written into the simulated arrays' `Hello`.
 pub const SIM_FIRMWARE_VERSION: [u8; 3] = [0, 1, 0];
+
+/// A simulated board's encoder: its `Hello`, then each pipeline output as the firmware frames
+/// it (`aim_wire::from_dsp`). A simulated board has no firmware faults: its counters stay zero.
+pub struct BoardEncoder {
+    encoder: Encoder,
+    firmware: from_dsp::FirmwareCounters,
+}
+
+impl BoardEncoder {
+    /// The encoder of array `id`, and the bytes of its `Hello` for `config` (geometry, rate)
+    /// with [`SIM_FIRMWARE_VERSION`].
+    pub fn new(id: u8, config: &Config) -> anyhow::Result<(Self, Vec<u8>)> {
+        let mut encoder = Encoder::new(id);
+        let mut buf = [0u8; MAX_ENCODED_LEN];
+        let n = encoder
+            .encode(0, Body::Hello(from_dsp::hello(config, SIM_FIRMWARE_VERSION)), &mut buf)
+            .map_err(|e| anyhow::anyhow!("array {id}: encoding the Hello: {e:?}"))?;
+        Ok((Self { encoder, firmware: from_dsp::FirmwareCounters::default() }, buf[..n].to_vec()))
+    }
+
+    /// Encodes `output` into `buf`; the frame's length, bytes.
+    pub fn encode(
+        &mut self,
+        output: &aim_dsp::Output,
+        buf: &mut [u8; MAX_ENCODED_LEN],
+    ) -> Result<usize, aim_wire::EncodeError> {
+        from_dsp::encode_output(&mut self.encoder, output, &self.firmware, buf)
+    }
+}
 
 /// The byte stream the array would send over its link: a `Hello`, then one frame per
 /// pipeline output, in order. `full_scale_pa` maps to digital full scale.
@@ -29,8 +58,7 @@ pub struct LinkStream {
     id: u8,
     full_scale_pa: f64,
     pipeline: Pipeline,
-    encoder: Encoder,
-    firmware: from_dsp::FirmwareCounters,
+    encoder: BoardEncoder,
     /// TDM words not handed to the pipeline yet (less than one chunk).
     pending: Vec<i32>,
     /// Samples handed to the pipeline so far.
@@ -54,25 +82,19 @@ impl LinkStream {
         let pipeline = Pipeline::new(&config)
             .map_err(|e| anyhow::anyhow!("{e:?}"))
             .with_context(|| format!("array {}: pipeline", rec.id))?;
-        let mut encoder = Encoder::new(rec.id);
-        let mut buf = [0u8; MAX_ENCODED_LEN];
-        let n = encoder
-            .encode(0, Body::Hello(from_dsp::hello(&config, SIM_FIRMWARE_VERSION)), &mut buf)
-            .map_err(|e| anyhow::anyhow!("{e:?}"))
-            .context("encoding Hello")?;
+        let (encoder, hello) = BoardEncoder::new(rec.id, &config)?;
         Ok(Self {
             id: rec.id,
             full_scale_pa,
             pipeline,
             encoder,
-            firmware: from_dsp::FirmwareCounters::default(),
             pending: Vec::with_capacity(CHUNK_FRAMES * TDM_SLOTS),
             samples: 0,
             down: rec.link_down_s.map(|[a, b]| {
                 let rate = f64::from(rec.sample_rate_hz);
                 ((a * rate) as u64, (b * rate) as u64)
             }),
-            bytes: buf[..n].to_vec(),
+            bytes: hello,
             error: None,
         })
     }
@@ -103,11 +125,8 @@ impl LinkStream {
         // link down then, it is lost (the encoder's sequence number still counts it).
         self.samples += (self.pending.len() / TDM_SLOTS) as u64;
         let lost = self.down.is_some_and(|(a, b)| (a..b).contains(&self.samples));
-        let (encoder, firmware, bytes, error) =
-            (&mut self.encoder, &self.firmware, &mut self.bytes, &mut self.error);
-        self.pipeline.push(&self.pending, &mut |out| match from_dsp::encode_output(
-            encoder, &out, firmware, &mut buf,
-        ) {
+        let (encoder, bytes, error) = (&mut self.encoder, &mut self.bytes, &mut self.error);
+        self.pipeline.push(&self.pending, &mut |out| match encoder.encode(&out, &mut buf) {
             Ok(n) if !lost => bytes.extend_from_slice(&buf[..n]),
             Ok(_) => {}
             Err(e) => *error = Some(format!("{e:?}")),
