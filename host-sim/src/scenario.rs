@@ -158,11 +158,42 @@ fn d_pause() -> f64 {
     0.5
 }
 
-#[derive(Deserialize)]
-#[serde(untagged)]
+/// `room.absorption`: one coefficient for every surface, or six.
 enum Absorption {
     All(f64),
     Each(Coords<6>),
+}
+
+impl<'de> Deserialize<'de> for Absorption {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Absorption;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(
+                    "a number (every surface) or an array of 6 numbers (walls x = 0, x = Lx, \
+                     y = 0, y = Ly, floor, ceiling)",
+                )
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Absorption, E> {
+                Ok(Absorption::All(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Absorption, E> {
+                Ok(Absorption::All(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Absorption, E> {
+                Ok(Absorption::All(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> Result<Absorption, A::Error> {
+                Coords::<6>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(Absorption::Each)
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 #[derive(Deserialize, Default)]
@@ -1376,6 +1407,25 @@ position = [2.0, -1.0, 0.05]
     fn with_path(extra: &str) -> anyhow::Result<Scenario> {
         let text = BASE.replace("height_m = 2.0", &format!("height_m = 2.0\n{extra}"));
         Scenario::from_toml(&text, "t")
+    }
+
+    /// `room.absorption` reads one number for every surface or six, and says which it wants.
+    #[test]
+    fn room_absorption_is_one_number_or_six_and_anything_else_is_named() {
+        let room = |a: &str| {
+            let text = BASE.replace("[2.0, -1.0, 0.05]", "[2.0, 1.0, 0.05]");
+            Scenario::from_toml(&format!("{text}\n[room]\nsize_m = [20.0, 20.0, 5.0]\n{a}\n"), "t")
+        };
+        let all = room("absorption = 0.3").unwrap();
+        assert_eq!(all.room.unwrap().absorption, [0.3; 6]);
+        let whole = room("absorption = 1").unwrap();
+        assert_eq!(whole.room.unwrap().absorption, [1.0; 6]);
+        let each = room("absorption = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]").unwrap();
+        assert_eq!(each.room.unwrap().absorption, [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]);
+        let e = format!("{:#}", room("absorption = [0.1, 0.2, 0.3]").unwrap_err());
+        assert!(e.contains("invalid length 3, expected an array of 6 numbers"), "{e}");
+        let e = format!("{:#}", room("absorption = \"high\"").unwrap_err());
+        assert!(e.contains("expected a number (every surface) or an array of 6 numbers"), "{e}");
     }
 
     #[test]
