@@ -23,6 +23,7 @@ measured - true in each bin of at least 20 frames whose median absolute deviatio
     python3 tools/reverb/compare.py --dir /tmp/reverb --survey /tmp/reverb-survey
 """
 import argparse
+import hashlib
 import json
 import os
 import subprocess
@@ -153,11 +154,25 @@ def reference_at(ref, t):
     return ref[i, 1:]
 
 
+def srp_cache_key(survey_dir, grid_deg):
+    """What SRP-PHAT's calibration of a survey depends on: the grid, the survey's audio (size
+    and modification time), its reference and its site."""
+    wav = os.stat(os.path.join(survey_dir, "survey.wav"))
+    digest = lambda name: hashlib.sha1(open(os.path.join(survey_dir, name), "rb").read()).hexdigest()
+    return {"grid_deg": grid_deg, "survey_bytes": wav.st_size, "survey_mtime_ns": wav.st_mtime_ns,
+            "reference_sha1": digest("reference.csv"), "site_sha1": digest("site.toml")}
+
+
 def srp_survey_points(survey_dir, array, host_sim, grid_deg):
-    """SRP-PHAT's own calibration from the survey: cached in SURVEY/srp-correction.json."""
+    """SRP-PHAT's own calibration from the survey: cached in SURVEY/srp-correction.json with
+    the key it was computed for (srp_cache_key); computed again when the key differs."""
     cache = os.path.join(survey_dir, "srp-correction.json")
+    key = srp_cache_key(survey_dir, grid_deg)
     if os.path.exists(cache):
-        return json.load(open(cache))
+        stored = json.load(open(cache))
+        if isinstance(stored, dict) and stored.get("key") == key:
+            return stored["points"]
+        print(f"{cache}: made for another survey or grid; computing it again", flush=True)
     wav = os.path.join(survey_dir, "survey.wav")
     x = read_wav(wav)
     ref = np.loadtxt(os.path.join(survey_dir, "reference.csv"), delimiter=",", skiprows=1)
@@ -175,7 +190,7 @@ def srp_survey_points(survey_dir, array, host_sim, grid_deg):
         measured.append(zen)
         true.append(np.degrees(np.arccos(v[2] / np.linalg.norm(v))))
     points = fit_points(measured, true)
-    json.dump(points, open(cache, "w"))
+    json.dump({"key": key, "points": points}, open(cache, "w"))
     return points
 
 
