@@ -155,17 +155,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out.flush().context("writing to stdout")?;
         Ok(counts)
     })();
-    let (frames, slot) = match fed {
-        Ok(counts) => counts,
-        Err(e) => match printer.link.take() {
-            Some(link) => {
-                let part = link.abandon();
-                eprintln!("note: the frames of the audio read so far are in {}", part.display());
-                return Err(e);
-            }
-            None => return Err(e),
-        },
-    };
+    let (frames, slot) = fed.inspect_err(|_| {
+        if let Some(link) = printer.link.take() {
+            let part = link.abandon();
+            eprintln!("note: the frames of the audio read so far are in {}", part.display());
+        }
+    })?;
     if let Some(link) = printer.link.take() {
         link.finish()?;
     }
