@@ -161,7 +161,7 @@ fn d_pause() -> f64 {
 /// `room.absorption`: one coefficient for every surface, or six.
 enum Absorption {
     All(f64),
-    Each(Coords<6>),
+    Each([f64; 6]),
 }
 
 impl<'de> Deserialize<'de> for Absorption {
@@ -186,10 +186,21 @@ impl<'de> Deserialize<'de> for Absorption {
             }
             fn visit_seq<A: serde::de::SeqAccess<'de>>(
                 self,
-                seq: A,
+                mut seq: A,
             ) -> Result<Absorption, A::Error> {
-                Coords::<6>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
-                    .map(Absorption::Each)
+                let mut each = [0.0; 6];
+                let mut n = 0;
+                while let Some(v) = seq.next_element::<f64>()? {
+                    if let Some(slot) = each.get_mut(n) {
+                        *slot = v;
+                    }
+                    n += 1;
+                }
+                if n != each.len() {
+                    // Names the surface order, not only the count.
+                    return Err(serde::de::Error::invalid_length(n, &self));
+                }
+                Ok(Absorption::Each(each))
             }
         }
         d.deserialize_any(Visitor)
@@ -838,7 +849,7 @@ impl Scenario {
                     }
                     (None, None) => [0.2; 6],
                     (Some(Absorption::All(a)), None) => [a; 6],
-                    (Some(Absorption::Each(a)), None) => a.0,
+                    (Some(Absorption::Each(a)), None) => a,
                 };
                 let room = Room {
                     size_m: r.size_m.0,
@@ -1423,7 +1434,10 @@ position = [2.0, -1.0, 0.05]
         let each = room("absorption = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]").unwrap();
         assert_eq!(each.room.unwrap().absorption, [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]);
         let e = format!("{:#}", room("absorption = [0.1, 0.2, 0.3]").unwrap_err());
-        assert!(e.contains("invalid length 3, expected an array of 6 numbers"), "{e}");
+        assert!(
+            e.contains("invalid length 3, expected a number (every surface) or an array of 6 numbers (walls x = 0, x = Lx, y = 0, y = Ly, floor, ceiling)"),
+            "{e}"
+        );
         let e = format!("{:#}", room("absorption = \"high\"").unwrap_err());
         assert!(e.contains("expected a number (every surface) or an array of 6 numbers"), "{e}");
     }

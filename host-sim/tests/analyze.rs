@@ -292,6 +292,8 @@ fn a_recording_cut_short_leaves_its_frames_in_a_part_file() {
     // The header still declares every sample; 60 % of the data remains.
     std::fs::write(&wav, &bytes[..bytes.len() * 3 / 5]).unwrap();
     let raw = dir.join("frames-1.aimraw");
+    // An earlier run's output: a failed run must not leave it looking like its own.
+    std::fs::write(&raw, b"an earlier run").unwrap();
     let out = analyze(&[
         wav.to_str().unwrap(),
         "--array",
@@ -303,7 +305,7 @@ fn a_recording_cut_short_leaves_its_frames_in_a_part_file() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     assert!(stderr.contains("cut short") && stderr.contains("frames-1.aimraw.part"), "{stderr}");
-    assert!(!raw.exists());
+    assert!(!raw.exists(), "the earlier run's {} is still there", raw.display());
     let printed = String::from_utf8(out.stdout)
         .unwrap()
         .lines()

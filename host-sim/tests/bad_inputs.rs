@@ -160,6 +160,14 @@ fn a_refused_value_is_named_with_its_file_and_line() {
         let e = format!("{:#}", Scenario::load(&path).unwrap_err());
         assert!(e.starts_with(&format!("{}:{want}", path.display())), "{e}");
     }
+    // A room's absorption of the wrong length names the surfaces' order.
+    let path = scratch("absorption.toml");
+    let three = "size_m = [10.0, 10.0, 4.0]\nabsorption = [0.1, 0.2, 0.3]";
+    std::fs::write(&path, edit("size_m = [10.0, 10.0, 4.0]", three)).unwrap();
+    let e = format!("{:#}", Scenario::load(&path).unwrap_err());
+    let want = "12: absorption: invalid length 3, expected a number (every surface) or an array \
+                of 6 numbers (walls x = 0, x = Lx, y = 0, y = Ly, floor, ceiling)";
+    assert!(e.starts_with(&format!("{}:{want}", path.display())), "{e}");
     // The TOML parser's own errors too, on one line.
     let path = scratch("typo.toml");
     std::fs::write(&path, edit("height_m = 2.0", "height_m = 2.0\nspeeed = 2")).unwrap();

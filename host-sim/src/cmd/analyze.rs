@@ -294,9 +294,18 @@ struct LinkFile {
 }
 
 impl LinkFile {
-    /// Creates `path`.part and writes the board's `Hello` (array `id`, the recording's
-    /// geometry and rate).
+    /// Removes a `path` left by an earlier run (so a failed run leaves no `FILE` that looks
+    /// like its output), creates `path`.part and writes the board's `Hello` (array `id`, the
+    /// recording's geometry and rate).
     fn create(path: &Path, id: u8, config: &Config) -> anyhow::Result<Self> {
+        match std::fs::remove_file(path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(e).with_context(|| {
+                    format!("--frames: removing {} from an earlier run", path.display())
+                });
+            }
+            _ => {}
+        }
         let mut part = path.as_os_str().to_owned();
         part.push(".part");
         let part = PathBuf::from(part);
