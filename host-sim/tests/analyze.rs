@@ -320,3 +320,25 @@ fn a_recording_cut_short_leaves_its_frames_in_a_part_file() {
     assert_eq!(doa, printed);
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--frames` naming the recording itself is refused before anything is removed or written.
+#[test]
+fn frames_that_name_an_input_are_refused_and_the_input_kept() {
+    let dir = scratch_dir("frames-input");
+    let wav = dir.join("array-1.wav");
+    write_recording(&wav);
+    let before = std::fs::read(&wav).unwrap();
+    let out = analyze(&[
+        wav.to_str().unwrap(),
+        "--array",
+        "respeaker6",
+        "--frames",
+        wav.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("that is an input of this run"), "{stderr}");
+    assert_eq!(std::fs::read(&wav).unwrap(), before);
+    assert!(!dir.join("array-1.wav.part").exists());
+    std::fs::remove_dir_all(dir).ok();
+}

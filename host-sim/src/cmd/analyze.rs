@@ -24,8 +24,9 @@
 //! encodes them), the bytes `aim record` stores: `aim frames`, `aim replay` and `aim calibrate`
 //! read them. A recording made during a survey thus calibrates a site (`aim calibrate FILE
 //! --reference ... --site ...`).
-//! The bytes go to `FILE.part`, renamed to `FILE` when the recording is through; a recording
-//! that fails half-way leaves its frames so far in `FILE.part` and no `FILE`.
+//! An existing `FILE` is removed when the run starts (`FILE` may not be one of the run's
+//! inputs). The bytes go to `FILE.part`, renamed to `FILE` when the recording is through; a
+//! recording that fails half-way leaves its frames so far in `FILE.part` and no `FILE`.
 use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 
@@ -53,7 +54,8 @@ pub struct Args {
     full_scale_pa: f64,
     /// Also write the frames the board would send for this recording (a Hello, then one frame
     /// per output) to this file, as `aim record` stores a link: for `aim frames`, `aim
-    /// replay`, `aim calibrate`.
+    /// replay`, `aim calibrate`. An existing FILE is replaced; the bytes go to FILE.part until
+    /// the recording is through.
     #[arg(long, value_name = "FILE")]
     frames: Option<PathBuf>,
     /// The array id written into `--frames` (the site file's `[[array]] id`).
@@ -104,7 +106,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = BufWriter::new(stdout.lock());
     let link = match &args.frames {
-        Some(path) => Some(LinkFile::create(path, args.id, &config)?),
+        Some(path) => {
+            // FILE is removed at the start: it must not be one of this run's inputs.
+            let same = |input: &Path| {
+                let c = |p: &Path| std::fs::canonicalize(p).ok();
+                c(path).is_some_and(|a| c(input) == Some(a))
+            };
+            if same(&args.wav) || same(Path::new(&args.array)) {
+                bail!(
+                    "--frames {}: that is an input of this run; name another file",
+                    path.display()
+                );
+            }
+            Some(LinkFile::create(path, args.id, &config)?)
+        }
         None => None,
     };
     let mut printer =
@@ -300,9 +315,8 @@ impl LinkFile {
     fn create(path: &Path, id: u8, config: &Config) -> anyhow::Result<Self> {
         match std::fs::remove_file(path) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                return Err(e).with_context(|| {
-                    format!("--frames: removing {} from an earlier run", path.display())
-                });
+                return Err(e)
+                    .with_context(|| format!("--frames: cannot replace {}", path.display()));
             }
             _ => {}
         }
