@@ -186,21 +186,10 @@ impl<'de> Deserialize<'de> for Absorption {
             }
             fn visit_seq<A: serde::de::SeqAccess<'de>>(
                 self,
-                mut seq: A,
+                seq: A,
             ) -> Result<Absorption, A::Error> {
-                let mut each = [0.0; 6];
-                let mut n = 0;
-                while let Some(v) = seq.next_element::<f64>()? {
-                    if let Some(slot) = each.get_mut(n) {
-                        *slot = v;
-                    }
-                    n += 1;
-                }
-                if n != each.len() {
-                    // Names the surface order, not only the count.
-                    return Err(serde::de::Error::invalid_length(n, &self));
-                }
-                Ok(Absorption::Each(each))
+                // A wrong count names the surface order (this visitor's wording), not only 6.
+                aim_tracker::config::exactly_from_seq(seq, &self).map(Absorption::Each)
             }
         }
         d.deserialize_any(Visitor)

@@ -156,6 +156,26 @@ mod tests {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Coords<const N: usize>(pub [f64; N]);
 
+/// Reads a sequence of exactly `N` numbers for a serde visitor; a sequence of another length
+/// is an `invalid_length` error that says what was `expected` (the visitor's own wording).
+pub fn exactly_from_seq<'de, A: serde::de::SeqAccess<'de>, const N: usize>(
+    mut seq: A,
+    expected: &dyn serde::de::Expected,
+) -> Result<[f64; N], A::Error> {
+    let mut out = [0.0; N];
+    let mut n = 0;
+    while let Some(v) = seq.next_element::<f64>()? {
+        if let Some(slot) = out.get_mut(n) {
+            *slot = v;
+        }
+        n += 1;
+    }
+    if n != N {
+        return Err(serde::de::Error::invalid_length(n, expected));
+    }
+    Ok(out)
+}
+
 /// `#[serde(deserialize_with = "aim_tracker::config::exactly")]` for a plain `[f64; N]` field:
 /// exactly `N` numbers, as [`Coords`] reads them.
 pub fn exactly<'de, D: serde::Deserializer<'de>, const N: usize>(
@@ -181,20 +201,9 @@ impl<'de, const N: usize> serde::Deserialize<'de> for Coords<N> {
             }
             fn visit_seq<A: serde::de::SeqAccess<'de>>(
                 self,
-                mut seq: A,
+                seq: A,
             ) -> Result<Self::Value, A::Error> {
-                let mut out = [0.0; N];
-                let mut n = 0;
-                while let Some(v) = seq.next_element::<f64>()? {
-                    if let Some(slot) = out.get_mut(n) {
-                        *slot = v;
-                    }
-                    n += 1;
-                }
-                if n != N {
-                    return Err(serde::de::Error::invalid_length(n, &self));
-                }
-                Ok(Coords(out))
+                exactly_from_seq(seq, &self).map(Coords)
             }
         }
         d.deserialize_seq(Exactly::<N>)
