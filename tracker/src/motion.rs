@@ -159,7 +159,7 @@ pub struct MotionConfig {
     /// a descent lowers the thrust, every horizontal start raises it (the tilt).
     pub start_sigmas_down: f64,
     /// While moving, this many newest BPF frames (0: off) that agree with each other within
-    /// `steady_sigmas` spreads, with one group and no DoA trend in either span, are a hover
+    /// `steady_sigmas` spreads, with no split cue and no DoA trend in either span, are a hover
     /// at a new rest level: the motion ends and the rest level moves to their mean. (The level
     /// a frame is judged against shifts when the tracker's hover pattern is relearnt; without
     /// this the classifier stayed "moving" through whole hovers.)
@@ -177,6 +177,9 @@ pub struct MotionConfig {
     pub common_split_share: f64,
     /// Weight, in unsplit frames, of the prior the rest split share starts from.
     pub split_share_prior_frames: f64,
+    /// While "moving", frames at hover thrust with no DoA trend in either span teach the
+    /// rest split share too (off: only frames while still do).
+    pub share_learns_while_moving: bool,
 }
 
 impl Default for MotionConfig {
@@ -204,6 +207,7 @@ impl Default for MotionConfig {
             yaw_min_frames: 3,
             common_split_share: 0.4,
             split_share_prior_frames: 10.0,
+            share_learns_while_moving: true,
         }
     }
 }
@@ -218,6 +222,10 @@ pub struct ThrustFrame {
     pub excess: f64,
     /// Two or more BPF groups heard (the rotor pairs differ).
     pub split: bool,
+    /// `excess` is not measured but assumed at hover: the tracker's value for a frame whose
+    /// groups are a yaw's odd/even split (a yaw keeps the total thrust). Such a frame counts
+    /// as a split, never towards the rest level or spread.
+    pub assumed_hover: bool,
 }
 
 /// The DoA windows at a decision instant.
@@ -243,11 +251,11 @@ enum Phase {
 /// either raises or lowers Σ BPF² at once: the first BPF frame whose thrust excess is beyond
 /// `start_sigmas` single-frame hover spreads starts a motion, long before a bearing trend is
 /// significant. A motion ends with its braking phase: once the newest `stop_quiet_frames`
-/// BPF frames are quiet (hover thrust, one group) and the short-span DoA trend is not
+/// BPF frames are quiet (hover thrust, no split cue) and the short-span DoA trend is not
 /// significant, the drone is still. Cruise keeps the state moving through its wake excess,
 /// its split or its DoA trend. Without calibrated BPF frames the DoA trend alone decides.
 ///
-/// The rest level of Σ BPF² is the running mean of the single-group frames while still (so a
+/// The rest level of Σ BPF² is the running mean of the frames without a split cue while still (so a
 /// drift of the tracker's hover calibration does not bias it); the single-frame spread comes
 /// from successive differences of those frames.
 ///
@@ -366,13 +374,16 @@ impl MotionClassifier {
         let limit = self.config.start_sigmas * self.frame_sigma();
         let m = self.config.rest_memory_frames;
         // The share of split frames at rest: every frame while still, and while "moving" the
-        // frames at hover thrust whose bearings show no trend. Without the second, a drone
+        // measured frames at hover thrust whose bearings show no trend in either span (at the
+        // last decision). Without the second, a drone
         // that hovers split and was judged moving by one of its splits before the share
         // had grown would stay moving for ever: its splits are never quiet, and still
         // frames alone would never teach it that they are its rest pattern.
-        let hover_thrust = self.is_calibrated()
+        let hover_thrust = !frame.assumed_hover
+            && self.is_calibrated()
             && self.excess_over_rest(&frame).abs() <= self.config.quiet_sigmas * self.frame_sigma();
-        if self.phase == Phase::Still || (hover_thrust && self.doa_quiet) {
+        let learns_moving = self.config.share_learns_while_moving && hover_thrust && self.doa_quiet;
+        if self.phase == Phase::Still || learns_moving {
             self.split_share_weight = (self.split_share_weight + 1.0).min(m);
             let x = if frame.split { 1.0 } else { 0.0 };
             self.rest_split_share += (x - self.rest_split_share) / self.split_share_weight;
@@ -382,12 +393,14 @@ impl MotionClassifier {
             // threshold (the first frame of a start, judged at the next update), or is split
             // while splits are news.
             let jump = self.is_calibrated() && self.excess_over_rest(&frame).abs() > limit;
-            if !jump && !self.split_cue(&frame) {
+            if !jump && !self.split_cue(&frame) && !frame.assumed_hover {
                 self.rest_frames += 1;
                 self.level_weight = (self.level_weight + 1.0).min(m);
                 self.rest_level += (frame.excess - self.rest_level) / self.level_weight;
                 // Successive rest frames differ by √2 spreads, whatever the level.
-                if let Some(prev) = self.frames.back().filter(|p| !self.split_cue(p)) {
+                if let Some(prev) =
+                    self.frames.back().filter(|p| !self.split_cue(p) && !p.assumed_hover)
+                {
                     let d = frame.excess - prev.excess;
                     if d.abs() <= limit * std::f64::consts::SQRT_2 {
                         self.sigma_weight = (self.sigma_weight + 1.0).min(m);
@@ -675,7 +688,12 @@ mod tests {
             }
             while next_bpf <= t {
                 let (excess, split) = frame_excess(next_bpf, k, 1e-3, &mut rng);
-                classifier.add_thrust(ThrustFrame { t: next_bpf, excess, split });
+                classifier.add_thrust(ThrustFrame {
+                    t: next_bpf,
+                    excess,
+                    split,
+                    assumed_hover: false,
+                });
                 next_bpf += bpf_period;
                 k += 1;
             }
@@ -731,17 +749,27 @@ mod tests {
         // A hover 0.7 % above the reference the tracker happened to calibrate, 1.2 ‰ noise.
         for k in 0..60 {
             let t = 0.256 * k as f64;
-            c.add_thrust(ThrustFrame { t, excess: 0.007 + 1.2e-3 * rng.normal(), split: false });
+            c.add_thrust(ThrustFrame {
+                t,
+                excess: 0.007 + 1.2e-3 * rng.normal(),
+                split: false,
+                assumed_hover: false,
+            });
             assert_eq!(c.update(t + 0.05, None), MotionClass::Hover, "at {t}");
         }
         assert!((c.frame_sigma() - 1.2e-3).abs() < 0.4e-3, "{}", c.frame_sigma());
         // A tilt of 1 m/s² (5.2 ‰ over the rest level) starts a motion at once.
         let t = 0.256 * 60.0;
-        c.add_thrust(ThrustFrame { t, excess: 0.007 + 0.0052, split: false });
+        c.add_thrust(ThrustFrame { t, excess: 0.007 + 0.0052, split: false, assumed_hover: false });
         assert_eq!(c.update(t + 0.05, None), MotionClass::Horizontal);
         // Non-finite or out-of-order frames are ignored.
-        c.add_thrust(ThrustFrame { t: t - 1.0, excess: 0.0, split: false });
-        c.add_thrust(ThrustFrame { t: t + 0.1, excess: f64::NAN, split: false });
+        c.add_thrust(ThrustFrame { t: t - 1.0, excess: 0.0, split: false, assumed_hover: false });
+        c.add_thrust(ThrustFrame {
+            t: t + 0.1,
+            excess: f64::NAN,
+            split: false,
+            assumed_hover: false,
+        });
         assert_eq!(c.latest_frame_t(), Some(t));
     }
 
@@ -752,7 +780,12 @@ mod tests {
         let mut t = 0.0;
         for _ in 0..40 {
             t += 0.256;
-            c.add_thrust(ThrustFrame { t, excess: 1e-3 * rng.normal(), split: false });
+            c.add_thrust(ThrustFrame {
+                t,
+                excess: 1e-3 * rng.normal(),
+                split: false,
+                assumed_hover: false,
+            });
             assert_eq!(c.update(t + 0.05, None), MotionClass::Hover);
         }
         (c, t)
@@ -769,7 +802,12 @@ mod tests {
             let mut out = Vec::new();
             for _ in 0..16 {
                 t += 0.256;
-                c.add_thrust(ThrustFrame { t, excess: -0.028 + 1e-3 * rng.normal(), split: false });
+                c.add_thrust(ThrustFrame {
+                    t,
+                    excess: -0.028 + 1e-3 * rng.normal(),
+                    split: false,
+                    assumed_hover: false,
+                });
                 out.push(c.update(t + 0.05, None));
             }
             out
@@ -782,59 +820,118 @@ mod tests {
         assert!(without.iter().all(|c| *c == MotionClass::Horizontal), "{without:?}");
     }
 
+    /// A drone hovering 7 m from the array (bearings with 1° of noise) for `secs` s, its Σ BPF²
+    /// 1.5 % under the reference. Until `split_from_s` it is heard as one group with
+    /// `spread_one` of single-frame spread; from then on split in 70 % of the frames, with
+    /// `spread_split`. Returns the class at each 0.1 s decision and the classifier.
+    fn split_hover(
+        config: MotionConfig,
+        split_from_s: f64,
+        secs: f64,
+        spread_one: f64,
+        spread_split: f64,
+    ) -> (Vec<MotionClass>, MotionClassifier) {
+        let mut rng = Rng::new(7);
+        let tracker = crate::tracker::TrackerConfig::default();
+        let mut c = MotionClassifier::new(config);
+        let mut window = DoaWindow::new(tracker.doa.clone());
+        let (doa_period, bpf_period) = (8192.0 / 48_000.0, 12_288.0 / 48_000.0);
+        let (mut next_doa, mut next_bpf) = (0.085, 0.256);
+        let mut out = Vec::new();
+        for step in 1..(secs * 10.0) as usize {
+            let t = step as f64 * 0.1;
+            while next_doa <= t {
+                let noise = 1.0f64.to_radians();
+                window.push(Bearing {
+                    t: next_doa,
+                    array_id: 0,
+                    azimuth_rad: 0.8 + noise * rng.normal(),
+                    zenith_rad: 1.29 + noise * rng.normal(),
+                    residual: 0.0,
+                    quality: 1.0,
+                });
+                next_doa += doa_period;
+            }
+            while next_bpf <= t {
+                let late = next_bpf >= split_from_s;
+                let split = late && rng.uniform() < 0.7;
+                let spread = if late { spread_split } else { spread_one };
+                let excess = -0.015 + spread * rng.normal();
+                c.add_thrust(ThrustFrame { t: next_bpf, excess, split, assumed_hover: false });
+                next_bpf += bpf_period;
+            }
+            out.push(c.update(t, doa_cues(&window, &tracker)));
+        }
+        (out, c)
+    }
+
+    fn hover_share(classes: &[MotionClass]) -> f64 {
+        classes.iter().filter(|c| **c == MotionClass::Hover).count() as f64 / classes.len() as f64
+    }
+
     #[test]
     fn a_drone_heard_split_at_rest_hovers() {
         // Seen on a drawn airframe (thrust factors 1.021 / 0.995 / 1.017 / 1.007 and a CG
         // offset): its rotors hover 323-330 Hz and the DSP resolves them into two groups in
-        // 70 % of the frames, whose Σ BPF² (each group taken for half the rotors) scatters by
-        // 5 ‰ instead of 1-2 ‰. The split is its rest pattern, not a tilt or a yaw. The drone
-        // hovers 7 m from the array; its bearings have 1° of noise.
-        let classes = |config: MotionConfig| {
-            let mut rng = Rng::new(7);
-            let tracker = crate::tracker::TrackerConfig::default();
-            let mut c = MotionClassifier::new(config);
-            let mut window = DoaWindow::new(tracker.doa.clone());
-            let (doa_period, bpf_period) = (8192.0 / 48_000.0, 12_288.0 / 48_000.0);
-            let (mut next_doa, mut next_bpf) = (0.085, 0.256);
-            let mut out = Vec::new();
-            for step in 1..300 {
-                let t = step as f64 * 0.1;
-                while next_doa <= t {
-                    let noise = 1.0f64.to_radians();
-                    window.push(Bearing {
-                        t: next_doa,
-                        array_id: 0,
-                        azimuth_rad: 0.8 + noise * rng.normal(),
-                        zenith_rad: 1.29 + noise * rng.normal(),
-                        residual: 0.0,
-                        quality: 1.0,
-                    });
-                    next_doa += doa_period;
-                }
-                while next_bpf <= t {
-                    let split = rng.uniform() < 0.7;
-                    let excess = -0.015 + 5e-3 * rng.normal();
-                    c.add_thrust(ThrustFrame { t: next_bpf, excess, split });
-                    next_bpf += bpf_period;
-                }
-                out.push(c.update(t, doa_cues(&window, &tracker)));
-            }
-            (out, c)
-        };
-        let hover_share = |classes: &[MotionClass]| {
-            classes.iter().filter(|c| **c == MotionClass::Hover).count() as f64
-                / classes.len() as f64
-        };
-        let (with, c) = classes(MotionConfig::default());
+        // 70 % of the frames; its Σ BPF² (each group taken for half the rotors) scatters by
+        // 4 ‰ unsplit and 6 ‰ split, against 1-2 ‰ for most drones. The split is its rest
+        // pattern, not a tilt or a yaw.
+        let (with, c) = split_hover(MotionConfig::default(), 0.0, 30.0, 5e-3, 5e-3);
         // The last 20 s: hover throughout.
         assert!(with[100..].iter().all(|c| *c == MotionClass::Hover), "{with:?}");
         assert!(hover_share(&with) > 0.9, "{with:?}");
         assert!((c.rest_split_share() - 0.7).abs() < 0.15, "{}", c.rest_split_share());
         assert!((c.frame_sigma() - 5e-3).abs() < 2e-3, "{}", c.frame_sigma());
-        // Taking every split as news (the rule off) calls much of this hover something else.
-        let (without, _) =
-            classes(MotionConfig { common_split_share: 1.1, ..MotionConfig::default() });
+        // Taking every split as news (the rule off: the share never reaches 1.1) calls much of
+        // this hover something else.
+        let off = MotionConfig { common_split_share: 1.1, ..MotionConfig::default() };
+        let (without, _) = split_hover(off, 0.0, 30.0, 5e-3, 5e-3);
         assert!(hover_share(&without) < 0.7, "{without:?}");
+    }
+
+    #[test]
+    fn a_hover_that_turns_split_while_judged_moving_becomes_still_again() {
+        // Heard as one group for 8 s with 3 ‰ of spread (the share of split frames stays near
+        // 0), then split in 70 % of the frames with 5 ‰: the first splits are news and start a "motion" before the share
+        // has grown. Frames at hover thrust with no bearing trend teach the share while
+        // moving, so the hover is found again.
+        let (with, _) = split_hover(MotionConfig::default(), 8.0, 60.0, 3e-3, 5e-3);
+        assert!(with[450..].iter().all(|c| *c == MotionClass::Hover), "{with:?}");
+        // Learning the share only while still, the classifier stays "moving".
+        let still_only =
+            MotionConfig { share_learns_while_moving: false, ..MotionConfig::default() };
+        let (without, _) = split_hover(still_only, 8.0, 60.0, 3e-3, 5e-3);
+        assert!(hover_share(&without[450..]) < 0.2, "{without:?}");
+    }
+
+    #[test]
+    fn frames_at_an_assumed_hover_thrust_do_not_set_the_rest_level() {
+        // A drone heard split in 70 % of its frames, each split frame wide enough to read as
+        // a yaw's split: the tracker sends those at its own hover calibration's level (0 here),
+        // not measured. The measured unsplit frames sit 1.5 % under it with 1.5 ‰ spread.
+        let classes = |assumed_hover: bool| {
+            let mut rng = Rng::new(5);
+            let mut c = MotionClassifier::new(MotionConfig::default());
+            let mut out = Vec::new();
+            for k in 0..200 {
+                let t = 0.256 * (k + 1) as f64;
+                let split = rng.uniform() < 0.7;
+                let frame = if split {
+                    ThrustFrame { t, excess: 0.0, split, assumed_hover }
+                } else {
+                    ThrustFrame { t, excess: -0.015 + 1.5e-3 * rng.normal(), split, assumed_hover }
+                };
+                c.add_thrust(frame);
+                out.push(c.update(t + 0.05, None));
+            }
+            out
+        };
+        let with = classes(true);
+        assert!(hover_share(&with[40..]) > 0.95, "{with:?}");
+        // Taken as measured, they pull the rest level and spread to the tracker's calibration
+        // and every measured frame reads as a thrust change.
+        let without = classes(false);
+        assert!(hover_share(&without[40..]) < 0.8, "{without:?}");
     }
 
     #[test]
@@ -842,18 +939,18 @@ mod tests {
         let (mut c, mut t) = calibrated(MotionConfig::default());
         // One frame hears the static imbalance as two groups, at hover thrust.
         t += 0.256;
-        c.add_thrust(ThrustFrame { t, excess: 0.0, split: true });
+        c.add_thrust(ThrustFrame { t, excess: 0.0, split: true, assumed_hover: false });
         assert_eq!(c.update(t + 0.05, None), MotionClass::Hover);
         for _ in 0..3 {
             t += 0.256;
-            c.add_thrust(ThrustFrame { t, excess: 0.0, split: false });
+            c.add_thrust(ThrustFrame { t, excess: 0.0, split: false, assumed_hover: false });
         }
         // A yaw: every frame split, at hover thrust; the third in a row (all fresh frames) is
         // a yaw.
         let mut out = Vec::new();
         for _ in 0..4 {
             t += 0.256;
-            c.add_thrust(ThrustFrame { t, excess: 0.0, split: true });
+            c.add_thrust(ThrustFrame { t, excess: 0.0, split: true, assumed_hover: false });
             out.push(c.update(t + 0.05, None));
         }
         assert_eq!(

@@ -1150,7 +1150,12 @@ impl Tracker {
         let reference = self.profile.rotors() as f64 * self.profile.hover_bpf_hz().powi(2);
         for f in self.spectra.iter().filter(|f| f.t > newest && f.t <= t) {
             let excess = f.sum_sq / reference - 1.0;
-            self.classifier.add_thrust(ThrustFrame { t: f.t, excess, split: f.groups >= 2 });
+            self.classifier.add_thrust(ThrustFrame {
+                t: f.t,
+                excess,
+                split: f.groups >= 2,
+                assumed_hover: f.yaw_split,
+            });
         }
         // The DoA trend over a short span follows starts and stops; the full window tells a
         // climb (zenith alone) from a sweep in azimuth.
