@@ -24,8 +24,12 @@ pub struct DoaConfig {
     pub los_max_fit_residual: f64,
     /// Smallest mean pair quality still called LoS; 0 disables it.
     pub los_min_quality: f64,
-    /// Smallest fraction of IQR inliers still called LoS.
+    /// Smallest fraction of inliers still called LoS (IQR inliers, and bearings within
+    /// `los_inlier_floor_rad` of the window's fit).
     pub los_min_inlier_fraction: f64,
+    /// A bearing this close to the window's fit (angle on the sky) is an inlier for the LoS
+    /// decision whatever the IQR rule says, rad; 0 leaves the IQR rule alone.
+    pub los_inlier_floor_rad: f64,
     /// A DoA trend slower than this is "stable", rad/s.
     pub moving_min_rate: f64,
     /// ... and it must also exceed this many standard errors of the slope.
@@ -41,6 +45,7 @@ impl Default for DoaConfig {
             los_max_fit_residual: 0.35,
             los_min_quality: 0.35,
             los_min_inlier_fraction: 0.6,
+            los_inlier_floor_rad: 1.5f64.to_radians(),
             moving_min_rate: 1.0f64.to_radians(),
             moving_min_sigmas: 3.0,
         }
@@ -70,7 +75,8 @@ pub struct DoaState {
     pub fit_residual: f64,
     /// Mean pair quality of the inliers.
     pub quality: f64,
-    /// Fraction of the window's estimates the IQR rule kept.
+    /// Fraction of the window's estimates counted as inliers: kept by the IQR rule, or within
+    /// `DoaConfig::los_inlier_floor_rad` of the fit.
     pub inlier_fraction: f64,
     /// Number of inliers.
     pub inliers: usize,
@@ -199,7 +205,21 @@ impl DoaWindow {
             if stt > 0.0 { sigma_component / stt.sqrt() } else { f64::INFINITY };
         let fit_residual = keep.iter().map(|&i| pts[i].residual).sum::<f64>() / n;
         let quality = keep.iter().map(|&i| pts[i].quality).sum::<f64>() / n;
-        let inlier_fraction = n / pts.len() as f64;
+        // A bearing counts as an inlier when the IQR rule kept it or when it lies within
+        // `los_inlier_floor_rad` of the fit: with the five or six bearings a window holds, the
+        // IQR's fences sit a fraction of a degree apart and reject noise, and a hovering
+        // drone in plain sight was flagged NLoS in one fix of ten.
+        let floor = c.los_inlier_floor_rad;
+        let near_fit = (0..pts.len())
+            .filter(|i| {
+                keep.contains(i) || {
+                    let da = az[*i] - (azimuth + az_rate * (ts[*i] - t));
+                    let dz = zen[*i] - (zenith + zen_rate * (ts[*i] - t));
+                    (s * da).hypot(dz) <= floor
+                }
+            })
+            .count();
+        let inlier_fraction = near_fit as f64 / pts.len() as f64;
         let los = erratic <= c.los_max_erratic_rad
             && fit_residual <= c.los_max_fit_residual
             && quality >= c.los_min_quality
@@ -277,5 +297,30 @@ mod tests {
             w.push(bearing(k as f64 * 0.02, 0.5 + 0.14 * rng.normal(), 1.2 + 0.14 * rng.normal()));
         }
         assert!(!w.state(0.98).unwrap().los);
+    }
+
+    #[test]
+    fn a_still_drone_in_sight_is_in_line_of_sight_with_few_bearings() {
+        // The chip's rate: a bearing every 0.17 s, six in the 1 s window, 0.5° of noise. The
+        // IQR rule on six values rejects one or two of them by chance.
+        let share_los = |config: DoaConfig| {
+            let mut rng = Rng::new(3);
+            let sigma = 0.5f64.to_radians();
+            let mut w = DoaWindow::new(config);
+            let (mut los, mut states) = (0, 0);
+            for k in 0..600 {
+                let t = k as f64 * 8192.0 / 48_000.0;
+                w.push(bearing(t, 0.9 + sigma * rng.normal(), 1.23 + sigma * rng.normal()));
+                if k >= 6 {
+                    los += usize::from(w.state(t).unwrap().los);
+                    states += 1;
+                }
+            }
+            los as f64 / states as f64
+        };
+        let with = share_los(DoaConfig::default());
+        assert!(with > 0.99, "{with}");
+        let without = share_los(DoaConfig { los_inlier_floor_rad: 0.0, ..DoaConfig::default() });
+        assert!(without < 0.95, "{without}");
     }
 }
