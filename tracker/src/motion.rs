@@ -373,15 +373,16 @@ impl MotionClassifier {
         }
         let limit = self.config.start_sigmas * self.frame_sigma();
         let m = self.config.rest_memory_frames;
+        let deviation = self.excess_over_rest(&frame).abs();
         // The share of split frames at rest: every frame while still, and while "moving" the
         // measured frames at hover thrust whose bearings show no trend in either span (at the
-        // last decision). Without the second, a drone
-        // that hovers split and was judged moving by one of its splits before the share
-        // had grown would stay moving for ever: its splits are never quiet, and still
-        // frames alone would never teach it that they are its rest pattern.
+        // last decision). Without the second, a drone that hovers split and was judged moving
+        // by one of its splits before the share had grown would stay moving for ever: its
+        // splits are never quiet, and still frames alone would never teach it that they are
+        // its rest pattern.
         let hover_thrust = !frame.assumed_hover
             && self.is_calibrated()
-            && self.excess_over_rest(&frame).abs() <= self.config.quiet_sigmas * self.frame_sigma();
+            && deviation <= self.config.quiet_sigmas * self.frame_sigma();
         let learns_moving = self.config.share_learns_while_moving && hover_thrust && self.doa_quiet;
         if self.phase == Phase::Still || learns_moving {
             self.split_share_weight = (self.split_share_weight + 1.0).min(m);
@@ -392,7 +393,7 @@ impl MotionClassifier {
             // At rest: the frame joins the rest level unless it jumps beyond the start
             // threshold (the first frame of a start, judged at the next update), or is split
             // while splits are news.
-            let jump = self.is_calibrated() && self.excess_over_rest(&frame).abs() > limit;
+            let jump = self.is_calibrated() && deviation > limit;
             if !jump && !self.split_cue(&frame) && !frame.assumed_hover {
                 self.rest_frames += 1;
                 self.level_weight = (self.level_weight + 1.0).min(m);
@@ -548,6 +549,11 @@ impl MotionClassifier {
 mod tests {
     use super::*;
 
+    /// A frame whose excess was measured.
+    fn measured(t: f64, excess: f64, split: bool) -> ThrustFrame {
+        ThrustFrame { t, excess, split, assumed_hover: false }
+    }
+
     #[test]
     fn table_one() {
         assert_eq!(MotionClass::from_cues(false, false), MotionClass::Hover);
@@ -688,12 +694,7 @@ mod tests {
             }
             while next_bpf <= t {
                 let (excess, split) = frame_excess(next_bpf, k, 1e-3, &mut rng);
-                classifier.add_thrust(ThrustFrame {
-                    t: next_bpf,
-                    excess,
-                    split,
-                    assumed_hover: false,
-                });
+                classifier.add_thrust(measured(next_bpf, excess, split));
                 next_bpf += bpf_period;
                 k += 1;
             }
@@ -749,27 +750,17 @@ mod tests {
         // A hover 0.7 % above the reference the tracker happened to calibrate, 1.2 ‰ noise.
         for k in 0..60 {
             let t = 0.256 * k as f64;
-            c.add_thrust(ThrustFrame {
-                t,
-                excess: 0.007 + 1.2e-3 * rng.normal(),
-                split: false,
-                assumed_hover: false,
-            });
+            c.add_thrust(measured(t, 0.007 + 1.2e-3 * rng.normal(), false));
             assert_eq!(c.update(t + 0.05, None), MotionClass::Hover, "at {t}");
         }
         assert!((c.frame_sigma() - 1.2e-3).abs() < 0.4e-3, "{}", c.frame_sigma());
         // A tilt of 1 m/s² (5.2 ‰ over the rest level) starts a motion at once.
         let t = 0.256 * 60.0;
-        c.add_thrust(ThrustFrame { t, excess: 0.007 + 0.0052, split: false, assumed_hover: false });
+        c.add_thrust(measured(t, 0.007 + 0.0052, false));
         assert_eq!(c.update(t + 0.05, None), MotionClass::Horizontal);
         // Non-finite or out-of-order frames are ignored.
-        c.add_thrust(ThrustFrame { t: t - 1.0, excess: 0.0, split: false, assumed_hover: false });
-        c.add_thrust(ThrustFrame {
-            t: t + 0.1,
-            excess: f64::NAN,
-            split: false,
-            assumed_hover: false,
-        });
+        c.add_thrust(measured(t - 1.0, 0.0, false));
+        c.add_thrust(measured(t + 0.1, f64::NAN, false));
         assert_eq!(c.latest_frame_t(), Some(t));
     }
 
@@ -780,12 +771,7 @@ mod tests {
         let mut t = 0.0;
         for _ in 0..40 {
             t += 0.256;
-            c.add_thrust(ThrustFrame {
-                t,
-                excess: 1e-3 * rng.normal(),
-                split: false,
-                assumed_hover: false,
-            });
+            c.add_thrust(measured(t, 1e-3 * rng.normal(), false));
             assert_eq!(c.update(t + 0.05, None), MotionClass::Hover);
         }
         (c, t)
@@ -802,12 +788,7 @@ mod tests {
             let mut out = Vec::new();
             for _ in 0..16 {
                 t += 0.256;
-                c.add_thrust(ThrustFrame {
-                    t,
-                    excess: -0.028 + 1e-3 * rng.normal(),
-                    split: false,
-                    assumed_hover: false,
-                });
+                c.add_thrust(measured(t, -0.028 + 1e-3 * rng.normal(), false));
                 out.push(c.update(t + 0.05, None));
             }
             out
@@ -857,7 +838,7 @@ mod tests {
                 let split = late && rng.uniform() < 0.7;
                 let spread = if late { spread_split } else { spread_one };
                 let excess = -0.015 + spread * rng.normal();
-                c.add_thrust(ThrustFrame { t: next_bpf, excess, split, assumed_hover: false });
+                c.add_thrust(measured(next_bpf, excess, split));
                 next_bpf += bpf_period;
             }
             out.push(c.update(t, doa_cues(&window, &tracker)));
@@ -892,9 +873,9 @@ mod tests {
     #[test]
     fn a_hover_that_turns_split_while_judged_moving_becomes_still_again() {
         // Heard as one group for 8 s with 3 ‰ of spread (the share of split frames stays near
-        // 0), then split in 70 % of the frames with 5 ‰: the first splits are news and start a "motion" before the share
-        // has grown. Frames at hover thrust with no bearing trend teach the share while
-        // moving, so the hover is found again.
+        // 0), then split in 70 % of the frames with 5 ‰: the first splits are news and start a
+        // "motion" before the share has grown. Frames at hover thrust with no bearing trend
+        // teach the share while moving, so the hover is found again.
         let (with, _) = split_hover(MotionConfig::default(), 8.0, 60.0, 3e-3, 5e-3);
         assert!(with[450..].iter().all(|c| *c == MotionClass::Hover), "{with:?}");
         // Learning the share only while still, the classifier stays "moving".
@@ -939,18 +920,18 @@ mod tests {
         let (mut c, mut t) = calibrated(MotionConfig::default());
         // One frame hears the static imbalance as two groups, at hover thrust.
         t += 0.256;
-        c.add_thrust(ThrustFrame { t, excess: 0.0, split: true, assumed_hover: false });
+        c.add_thrust(measured(t, 0.0, true));
         assert_eq!(c.update(t + 0.05, None), MotionClass::Hover);
         for _ in 0..3 {
             t += 0.256;
-            c.add_thrust(ThrustFrame { t, excess: 0.0, split: false, assumed_hover: false });
+            c.add_thrust(measured(t, 0.0, false));
         }
         // A yaw: every frame split, at hover thrust; the third in a row (all fresh frames) is
         // a yaw.
         let mut out = Vec::new();
         for _ in 0..4 {
             t += 0.256;
-            c.add_thrust(ThrustFrame { t, excess: 0.0, split: true, assumed_hover: false });
+            c.add_thrust(measured(t, 0.0, true));
             out.push(c.update(t + 0.05, None));
         }
         assert_eq!(
