@@ -358,6 +358,12 @@ impl MotionClassifier {
         self.rest_split_share
     }
 
+    /// Whether a frame may join the rest level and spread while still: measured (not a yaw's
+    /// assumed hover) and not split while splits are news.
+    fn joins_rest(&self, f: &ThrustFrame) -> bool {
+        !self.split_cue(f) && !f.assumed_hover
+    }
+
     fn is_quiet(&self, f: &ThrustFrame) -> bool {
         !self.split_cue(f)
             && self.excess_over_rest(f).abs() <= self.config.quiet_sigmas * self.frame_sigma()
@@ -394,14 +400,12 @@ impl MotionClassifier {
             // threshold (the first frame of a start, judged at the next update), or is split
             // while splits are news.
             let jump = self.is_calibrated() && deviation > limit;
-            if !jump && !self.split_cue(&frame) && !frame.assumed_hover {
+            if !jump && self.joins_rest(&frame) {
                 self.rest_frames += 1;
                 self.level_weight = (self.level_weight + 1.0).min(m);
                 self.rest_level += (frame.excess - self.rest_level) / self.level_weight;
                 // Successive rest frames differ by √2 spreads, whatever the level.
-                if let Some(prev) =
-                    self.frames.back().filter(|p| !self.split_cue(p) && !p.assumed_hover)
-                {
+                if let Some(prev) = self.frames.back().filter(|p| self.joins_rest(p)) {
                     let d = frame.excess - prev.excess;
                     if d.abs() <= limit * std::f64::consts::SQRT_2 {
                         self.sigma_weight = (self.sigma_weight + 1.0).min(m);
