@@ -126,6 +126,12 @@ pub struct AimConfig {
     /// range in the previous leg would otherwise never leave it). Each new range keeps the
     /// mixture's weight near it, mixed with this floor fraction spread evenly.
     pub respread_floor: f64,
+    /// Without line of sight, re-spread the hypotheses level at the mixture's mean height along
+    /// the bearing's azimuth (horizontal distances) instead of along the measured ray: a blocked
+    /// drone's zenith is the diffraction edge's (a shelf in front of the array reads 20–30°
+    /// from vertical for a drone at 75–80°), so the ray would put every hypothesis near the
+    /// array. BENCHMARKS.md "Session 35".
+    pub nlos_respread_level: bool,
     /// Prior standard deviation of the log emitted BPF against the reference (the profile's
     /// hover BPF; a drawn drone hovers a few % off it).
     pub rest_sigma: f64,
@@ -189,6 +195,7 @@ impl Default for AimConfig {
             prune_ratio: 1e-4,
             doppler: true,
             respread_floor: 0.05,
+            nlos_respread_level: true,
             rest_sigma: 0.05,
             q_rest: 2e-7,
             q_rest_manoeuvre: 2e-5,
@@ -276,18 +283,45 @@ impl AimFilter {
         true
     }
 
+    /// The line the hypotheses are re-spread along: from the array along the measured ray, or
+    /// without line of sight ([`AimConfig::nlos_respread_level`]) level along the bearing's
+    /// azimuth, from the point on the array's vertical at the mixture's mean height. The ray
+    /// is kept when the bearing is within [`LEVEL_RESPREAD_MIN_TILT_RAD`] of vertical (its
+    /// azimuth is then mostly noise) or the mixture has no finite height. (origin, unit
+    /// direction).
+    fn respread_line(&self, step: &Step, doa: &crate::doa::DoaState) -> ([f64; 3], [f64; 3]) {
+        let a = step.array.position;
+        let dir = world_direction(step.array, doa);
+        let level = dir[0].hypot(dir[1]);
+        if step.los || !self.config.nlos_respread_level || level < LEVEL_RESPREAD_MIN_TILT_RAD.sin()
+        {
+            return (a, dir);
+        }
+        let heaviest = self.components.iter().map(|(lw, _)| *lw).fold(f64::NEG_INFINITY, f64::max);
+        let (sum, total) = self.components.iter().fold((0.0, 0.0), |(s, t), (lw, f)| {
+            let w = (lw - heaviest).exp();
+            (s + w * f.x[2], t + w)
+        });
+        let height = sum / total;
+        if !height.is_finite() {
+            return (a, dir);
+        }
+        ([a[0], a[1], height], [dir[0] / level, dir[1] / level, 0.0])
+    }
+
     /// Replaces the hypotheses by `hypotheses` ranges along the current bearing, each weighted
     /// by the mixture's weight near it (in log range, one spacing wide) mixed with
     /// `respread_floor`; velocity at rest, the zenith bias and emitted BPF of the heaviest.
+    /// The line is [`Self::respread_line`]'s.
     fn respread_ranges(&mut self, step: &Step) {
         let c = &self.config;
         if c.respread_floor <= 0.0 || self.components.is_empty() {
             return;
         }
         let Some(doa) = step.doa else { return };
-        let a = step.array.position;
-        let dir = world_direction(step.array, &doa);
-        let r_max = max_range_in_room(a, dir, step.room, c.range_max_m).max(c.range_min_m * 1.5);
+        let (origin, dir) = self.respread_line(step, &doa);
+        let r_max =
+            max_range_in_room(origin, dir, step.room, c.range_max_m).max(c.range_min_m * 1.5);
         let n = c.hypotheses.max(2);
         let ratio = (r_max / c.range_min_m).powf(1.0 / (n - 1) as f64);
         let spacing = ratio.ln();
@@ -298,7 +332,11 @@ impl AimFilter {
             .iter()
             .map(|(lw, f)| {
                 let p = f.position();
-                let r = crate::observation::norm([p[0] - a[0], p[1] - a[1], p[2] - a[2]]);
+                let r = crate::observation::norm([
+                    p[0] - origin[0],
+                    p[1] - origin[1],
+                    p[2] - origin[2],
+                ]);
                 (lw.exp(), r.max(1e-3).ln())
             })
             .collect();
@@ -323,7 +361,7 @@ impl AimFilter {
                 let along = r * (ratio - 1.0) * 0.5;
                 let across = r * 3.0f64.to_radians();
                 for i in 0..3 {
-                    f.x[i] = a[i] + r * dir[i];
+                    f.x[i] = origin[i] + r * dir[i];
                     f.x[i + 3] = 0.0;
                 }
                 for i in 0..STATE {
@@ -659,6 +697,10 @@ impl Filter for AimFilter {
     }
 }
 
+/// Smallest angle from vertical of a bearing whose azimuth the level re-spread follows
+/// ([`AimConfig::nlos_respread_level`]), rad.
+const LEVEL_RESPREAD_MIN_TILT_RAD: f64 = 10.0 * std::f64::consts::PI / 180.0;
+
 /// The white-acceleration densities `q` (m²/s³, x y z) with the horizontal ones scaled by
 /// (v_h / `speed_ref_mps`)² above that speed (v_h: the horizontal speed of `velocity`, m/s);
 /// unchanged below it or with `speed_ref_mps` ≤ 0 ([`AimConfig::turn_speed_ref_mps`]).
@@ -897,6 +939,72 @@ mod tests {
             filter.components.iter().all(|(lw, _)| *lw >= least - 0.5),
             "a range lost its floor"
         );
+    }
+
+    /// A mixture collapsed on the drone (2 m up, 5.8 m out) hovers, then starts a leg while
+    /// the array hears it over a shelf: the DoA points at the shelf's edge, 20° from vertical,
+    /// at the drone's azimuth, with the LoS flag `los`. Returns the heaviest hypothesis's
+    /// position and every hypothesis's (height, horizontal distance, azimuth).
+    fn blocked_leg_start(config: AimConfig, los: bool) -> ([f64; 3], Vec<(f64, f64, f64)>) {
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let mut filter = AimFilter::new(config);
+        let mut rng = crate::testutil::Rng::new(4);
+        let truth = [5.0f64, 3.0, 2.0];
+        let azimuth = truth[1].atan2(truth[0]);
+        let edge = 20f64.to_radians();
+        let edge = [edge.sin() * azimuth.cos(), edge.sin() * azimuth.sin(), edge.cos()];
+        let mut cov = StateCov::identity() * 0.01;
+        cov[(LN_REST, LN_REST)] = 1e-4;
+        filter.components = vec![(
+            0.0,
+            Ekf::new([truth[0], truth[1], truth[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01], cov),
+        )];
+        for (k, motion) in [MotionClass::Hover, MotionClass::Hover, MotionClass::Horizontal]
+            .into_iter()
+            .enumerate()
+        {
+            let t = k as f64 * 0.1;
+            let seen = seen_step(&array, t, 0.1, doa(t, edge, &mut rng), motion, still());
+            filter.step(&Step { los, ..seen });
+        }
+        let (_, heaviest) = filter.components.iter().max_by(|a, b| a.0.total_cmp(&b.0)).unwrap();
+        let spread = filter
+            .components
+            .iter()
+            .map(|(_, f)| (f.x[2], f.x[0].hypot(f.x[1]), f.x[1].atan2(f.x[0])))
+            .collect();
+        (heaviest.position(), spread)
+    }
+
+    #[test]
+    fn without_line_of_sight_a_leg_start_spreads_level_at_the_mixture_height() {
+        // Oracle: the geometry. Level, every hypothesis stays at the mixture's height (2 m)
+        // on the bearing's azimuth (beyond 2 m out, where the headings' first step no longer
+        // turns it), from range_min to range_max out, the heaviest where the mixture was; along
+        // the edge's ray the heaviest would sit 5.8 m up, 2.1 m out.
+        let c = AimConfig::default();
+        let truth_azimuth = 3.0f64.atan2(5.0);
+        let (heaviest, spread) = blocked_leg_start(c.clone(), false);
+        for &(z, out, azimuth) in &spread {
+            assert!((z - 2.0).abs() < 0.3, "a hypothesis at height {z} m");
+            let off = crate::observation::wrap_pi(azimuth - truth_azimuth).abs();
+            assert!(out < 2.0 || off < 3f64.to_radians(), "{}° off azimuth", off.to_degrees());
+            assert!(out > 0.8 * c.range_min_m && out < 1.05 * c.range_max_m, "{out} m out");
+        }
+        let farthest = spread.iter().map(|s| s.1).fold(0.0, f64::max);
+        assert!(farthest > 0.8 * c.range_max_m, "farthest {farthest} m");
+        let out = heaviest[0].hypot(heaviest[1]);
+        assert!((out - 5.83).abs() < 1.5 && (heaviest[2] - 2.0).abs() < 0.3, "{heaviest:?}");
+        // Switched off, the hypotheses lie along the measured ray.
+        let along_ray = AimConfig { nlos_respread_level: false, ..AimConfig::default() };
+        let (heaviest, _) = blocked_leg_start(along_ray, false);
+        assert!(heaviest[2] > 4.0 && heaviest[0].hypot(heaviest[1]) < 3.0, "{heaviest:?}");
+        // With the LoS flag up, too: every hypothesis beyond 2 m sits on the 20° ray.
+        let (_, spread) = blocked_leg_start(AimConfig::default(), true);
+        for &(z, out, _) in spread.iter().filter(|s| s.0.hypot(s.1) > 2.0) {
+            let zenith = out.atan2(z).to_degrees();
+            assert!((zenith - 20.0).abs() < 5.0, "a hypothesis at zenith {zenith}°");
+        }
     }
 
     #[test]
