@@ -122,7 +122,8 @@ pub struct AimConfig {
     /// Use the Doppler of the BPF frames ([`crate::doppler`]).
     pub doppler: bool,
     /// When a horizontal leg starts from rest, the range hypotheses are spread along the ray
-    /// again (a still drone's range is not observable; a mixture that collapsed onto a wrong
+    /// again (level without line of sight, [`AimConfig::nlos_respread_level`]; a still drone's range
+    /// is not observable; a mixture that collapsed onto a wrong
     /// range in the previous leg would otherwise never leave it). Each new range keeps the
     /// mixture's weight near it, mixed with this floor fraction spread evenly.
     pub respread_floor: f64,
@@ -298,12 +299,7 @@ impl AimFilter {
         {
             return (a, dir);
         }
-        let heaviest = self.components.iter().map(|(lw, _)| *lw).fold(f64::NEG_INFINITY, f64::max);
-        let (sum, total) = self.components.iter().fold((0.0, 0.0), |(s, t), (lw, f)| {
-            let w = (lw - heaviest).exp();
-            (s + w * f.x[2], t + w)
-        });
-        let height = sum / total;
+        let height = self.estimate().position[2];
         if !height.is_finite() {
             return (a, dir);
         }
@@ -901,31 +897,44 @@ mod tests {
         }
     }
 
+    /// A filter whose mixture has collapsed onto `at` (one hypothesis, world m) hovers two
+    /// steps, then starts a horizontal leg, every step's DoA towards `towards` (noise from
+    /// `seed`) with the LoS flag `los`; returns the filter after the leg's first step.
+    fn leg_from_collapsed(
+        config: AimConfig,
+        at: [f64; 3],
+        towards: [f64; 3],
+        los: bool,
+        seed: u64,
+    ) -> AimFilter {
+        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
+        let mut filter = AimFilter::new(config);
+        let mut rng = crate::testutil::Rng::new(seed);
+        let mut cov = StateCov::identity() * 0.01;
+        cov[(LN_REST, LN_REST)] = 1e-4;
+        filter.components =
+            vec![(0.0, Ekf::new([at[0], at[1], at[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01], cov))];
+        for (k, motion) in [MotionClass::Hover, MotionClass::Hover, MotionClass::Horizontal]
+            .into_iter()
+            .enumerate()
+        {
+            let t = k as f64 * 0.1;
+            let seen = seen_step(&array, t, 0.1, doa(t, towards, &mut rng), motion, still());
+            filter.step(&Step { los, ..seen });
+        }
+        filter
+    }
+
     #[test]
     fn a_leg_from_rest_spreads_a_collapsed_mixture_along_the_ray_again() {
         // A mixture that has collapsed onto 2 m (every hypothesis there) hovers, then starts a
         // leg: the ranges come back from range_min to range_max, the heaviest near 2 m, and
         // every range keeps at least its share of the floor.
         let c = AimConfig::default();
-        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
-        let mut filter = AimFilter::new(c.clone());
-        let mut rng = crate::testutil::Rng::new(3);
         let truth = [5.0, 3.0, 2.0];
         let collapsed = 2.0 / crate::observation::norm(truth);
         let here = truth.map(|x| x * collapsed);
-        let mut cov = StateCov::identity() * 0.01;
-        cov[(LN_REST, LN_REST)] = 1e-4;
-        filter.components =
-            vec![(0.0, Ekf::new([here[0], here[1], here[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01], cov))];
-        let speed = still();
-        for (k, motion) in [MotionClass::Hover, MotionClass::Hover, MotionClass::Horizontal]
-            .into_iter()
-            .enumerate()
-        {
-            let t = k as f64 * 0.1;
-            let step = seen_step(&array, t, 0.1, doa(t, truth, &mut rng), motion, speed);
-            filter.step(&step);
-        }
+        let filter = leg_from_collapsed(c.clone(), here, truth, true, 3);
         assert_eq!(filter.hypotheses(), c.hypotheses * c.leg_headings);
         let range = |f: &Ekf| crate::observation::norm(f.position());
         let (lo, hi) = filter
@@ -944,30 +953,15 @@ mod tests {
 
     /// A mixture collapsed on the drone (2 m up, 5.8 m out) hovers, then starts a leg while
     /// the array hears it over a shelf: the DoA reads 20° from vertical (as the steepest tenth
-    /// of the NLoS square's frames do) at the drone's azimuth, with the LoS flag `los`. Returns the heaviest hypothesis's
-    /// position and every hypothesis's (height, horizontal distance, azimuth).
+    /// of the NLoS square's frames do) at the drone's azimuth, with the LoS flag `los`.
+    /// Returns the heaviest hypothesis's position and every hypothesis's (height, horizontal
+    /// distance, azimuth).
     fn blocked_leg_start(config: AimConfig, los: bool) -> ([f64; 3], Vec<(f64, f64, f64)>) {
-        let array = ArrayPose::new(0, [0.0, 0.0, 0.0], 0.0, 0.0, 0.0);
-        let mut filter = AimFilter::new(config);
-        let mut rng = crate::testutil::Rng::new(4);
         let truth = [5.0f64, 3.0, 2.0];
         let azimuth = truth[1].atan2(truth[0]);
         let steep = 20f64.to_radians();
         let steep = [steep.sin() * azimuth.cos(), steep.sin() * azimuth.sin(), steep.cos()];
-        let mut cov = StateCov::identity() * 0.01;
-        cov[(LN_REST, LN_REST)] = 1e-4;
-        filter.components = vec![(
-            0.0,
-            Ekf::new([truth[0], truth[1], truth[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.01], cov),
-        )];
-        for (k, motion) in [MotionClass::Hover, MotionClass::Hover, MotionClass::Horizontal]
-            .into_iter()
-            .enumerate()
-        {
-            let t = k as f64 * 0.1;
-            let seen = seen_step(&array, t, 0.1, doa(t, steep, &mut rng), motion, still());
-            filter.step(&Step { los, ..seen });
-        }
+        let filter = leg_from_collapsed(config, truth, steep, los, 4);
         let (_, heaviest) = filter.components.iter().max_by(|a, b| a.0.total_cmp(&b.0)).unwrap();
         let spread = filter
             .components
