@@ -90,6 +90,37 @@ pub struct DoaState {
     pub moving: bool,
 }
 
+/// The trend of a window's bearings for the motion classifier's slow span: a least-squares
+/// line per component (azimuth·sin zenith, zenith), fitted again without the bearings that lie
+/// beyond 3 robust σ of the first fit (a reflection's bearing), and the same trend over the
+/// span's older and newer halves, which a slow drift shows and a step does not.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Trend {
+    /// Angular speed of the bearing's unit vector (least-squares slopes), rad/s.
+    pub angular_rate: f64,
+    /// The smaller of the two halves' angular rates along the whole span's direction of
+    /// motion, rad/s (negative: a half turned the other way; 0 with fewer than two bearings
+    /// in a half).
+    pub halves_rate: f64,
+    /// Noise of one bearing per component (azimuth·sin zenith, zenith) around the refitted
+    /// lines: 1.4826 × the median absolute residual of the kept bearings, rad.
+    pub noise_rad: f64,
+    /// √Σ(t − t̄)² of the kept bearings' times, s: the rate's standard error is noise / this.
+    pub time_spread_s: f64,
+}
+
+/// A trend's slopes, rad/s: (azimuth·sin zenith, zenith).
+type Slopes = (f64, f64);
+
+/// The least-squares slopes of (ts, az, zen) at the indices `keep`, with sin zenith `sin`.
+fn slopes(ts: &[f64], az: &[f64], zen: &[f64], keep: &[usize], sin: f64) -> Slopes {
+    let sel = |v: &[f64]| keep.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+    let tk = sel(ts);
+    let (_, az_rate, _, _) = line_fit(&tk, &sel(az), 0.0);
+    let (_, zen_rate, _, _) = line_fit(&tk, &sel(zen), 0.0);
+    (sin * az_rate, zen_rate)
+}
+
 /// A sliding window of one array's bearings.
 #[derive(Clone, Debug)]
 pub struct DoaWindow {
@@ -140,6 +171,74 @@ impl DoaWindow {
         self.bearings.back().map(|b| b.t)
     }
 
+    /// The window's bearings from `t − window_s` to `t`, oldest first, with their times,
+    /// azimuths unwrapped around the newest one (so the span never straddles ±π) and zeniths.
+    fn span(&self, t: f64) -> (Vec<&Bearing>, [Vec<f64>; 3]) {
+        let c = &self.config;
+        let pts: Vec<&Bearing> =
+            self.bearings.iter().filter(|b| b.t >= t - c.window_s && b.t <= t + 1e-9).collect();
+        let reference = pts.last().map_or(0.0, |b| b.azimuth_rad);
+        let ts = pts.iter().map(|b| b.t).collect();
+        let az = pts.iter().map(|b| reference + wrap_pi(b.azimuth_rad - reference)).collect();
+        let zen = pts.iter().map(|b| b.zenith_rad).collect();
+        (pts, [ts, az, zen])
+    }
+
+    /// The trend of the window's bearings up to `t` ([`Trend`]), or `None` with fewer than
+    /// four bearings kept.
+    pub fn trend(&self, t: f64) -> Option<Trend> {
+        let (pts, [ts, az, zen]) = self.span(t);
+        if pts.len() < 4 {
+            return None;
+        }
+        let all: Vec<usize> = (0..pts.len()).collect();
+        // Residuals per component (azimuth·sin zenith, zenith) of the lines through `keep`.
+        let residuals = |keep: &[usize]| {
+            let sel = |v: &[f64]| keep.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+            let tk = sel(&ts);
+            let (za, sa, _, _) = line_fit(&tk, &sel(&az), t);
+            let (zz, sz, _, stt) = line_fit(&tk, &sel(&zen), t);
+            let sin = zz.clamp(0.0, std::f64::consts::PI).sin();
+            let r: Vec<(f64, f64)> = (0..pts.len())
+                .map(|i| (sin * (az[i] - za - sa * (ts[i] - t)), zen[i] - zz - sz * (ts[i] - t)))
+                .collect();
+            (r, sin, stt)
+        };
+        let robust_sigma = |r: &[(f64, f64)], keep: &[usize]| {
+            let mut abs: Vec<f64> =
+                keep.iter().flat_map(|&i| [r[i].0.abs(), r[i].1.abs()]).collect();
+            abs.sort_by(f64::total_cmp);
+            1.4826 * crate::iqr::quantile_sorted(&abs, 0.5)
+        };
+        let (r, _, _) = residuals(&all);
+        let cut = 3.0 * robust_sigma(&r, &all);
+        let kept: Vec<usize> =
+            all.iter().copied().filter(|&i| r[i].0.abs() <= cut && r[i].1.abs() <= cut).collect();
+        let keep = if kept.len() >= 4 { kept } else { all };
+        let (r, sin, stt) = residuals(&keep);
+        if stt <= 0.0 {
+            return None;
+        }
+        let whole = slopes(&ts, &az, &zen, &keep, sin);
+        let rate = whole.0.hypot(whole.1);
+        // Each half's slopes projected on the whole span's direction of motion.
+        let mid = 0.5 * (ts[keep[0]] + ts[keep[keep.len() - 1]]);
+        let (older, newer): (Vec<usize>, Vec<usize>) = keep.iter().partition(|&&i| ts[i] < mid);
+        let along = |half: &[usize]| {
+            if half.len() < 2 || rate <= 0.0 {
+                return 0.0;
+            }
+            let h = slopes(&ts, &az, &zen, half, sin);
+            (h.0 * whole.0 + h.1 * whole.1) / rate
+        };
+        Some(Trend {
+            angular_rate: rate,
+            halves_rate: along(&older).min(along(&newer)),
+            noise_rad: robust_sigma(&r, &keep),
+            time_spread_s: stt.sqrt(),
+        })
+    }
+
     /// The window's state evaluated at time `t` (normally the newest bearing's time), or
     /// `None` with too few estimates.
     pub fn state(&self, t: f64) -> Option<DoaState> {
@@ -152,28 +251,22 @@ impl DoaWindow {
     /// (the `moving` test accounts for it); `min_count` keeps enough bearings for a trend.
     pub fn state_over(&self, t: f64, span_s: f64, min_count: usize) -> Option<DoaState> {
         let c = &self.config;
-        let in_window: Vec<&Bearing> =
-            self.bearings.iter().filter(|b| b.t >= t - c.window_s && b.t <= t + 1e-9).collect();
+        let (in_window, [ts, az, zen]) = self.span(t);
         let recent = in_window.iter().filter(|b| b.t >= t - span_s).count();
         let skip = in_window.len() - recent.max(min_count).min(in_window.len());
         let pts = &in_window[skip..];
         if pts.len() < c.min_points {
             return None;
         }
-        // Unwrap azimuths around the newest one so the window never straddles ±π.
-        let reference = pts[pts.len() - 1].azimuth_rad;
-        let az: Vec<f64> =
-            pts.iter().map(|b| reference + wrap_pi(b.azimuth_rad - reference)).collect();
-        let zen: Vec<f64> = pts.iter().map(|b| b.zenith_rad).collect();
-        let ts: Vec<f64> = pts.iter().map(|b| b.t).collect();
+        let (ts, az, zen) = (&ts[skip..], &az[skip..], &zen[skip..]);
         // IQR on the values (the paper's rule), then again on the residuals of a line fit so a
         // steady trend is not mistaken for a spread.
-        let (ia, iz) = (iqr_inliers(&az), iqr_inliers(&zen));
+        let (ia, iz) = (iqr_inliers(az), iqr_inliers(zen));
         let mut keep: Vec<usize> = (0..pts.len()).filter(|&i| ia[i] && iz[i]).collect();
         if keep.len() >= c.min_points {
             let sel = |v: &[f64], k: &[usize]| k.iter().map(|&i| v[i]).collect::<Vec<f64>>();
-            let (_, _, ra, _) = line_fit(&sel(&ts, &keep), &sel(&az, &keep), t);
-            let (_, _, rz, _) = line_fit(&sel(&ts, &keep), &sel(&zen, &keep), t);
+            let (_, _, ra, _) = line_fit(&sel(ts, &keep), &sel(az, &keep), t);
+            let (_, _, rz, _) = line_fit(&sel(ts, &keep), &sel(zen, &keep), t);
             let (ma, mz) = (iqr_inliers(&ra), iqr_inliers(&rz));
             let second: Vec<usize> = keep
                 .iter()
@@ -189,9 +282,9 @@ impl DoaWindow {
             keep = (0..pts.len()).collect();
         }
         let sel = |v: &[f64]| keep.iter().map(|&i| v[i]).collect::<Vec<f64>>();
-        let tk = sel(&ts);
-        let (azimuth, az_rate, ra, stt) = line_fit(&tk, &sel(&az), t);
-        let (zenith, zen_rate, rz, _) = line_fit(&tk, &sel(&zen), t);
+        let tk = sel(ts);
+        let (azimuth, az_rate, ra, stt) = line_fit(&tk, &sel(az), t);
+        let (zenith, zen_rate, rz, _) = line_fit(&tk, &sel(zen), t);
         let zenith = zenith.clamp(0.0, std::f64::consts::PI);
         let s = zenith.sin();
         let n = keep.len() as f64;
@@ -256,6 +349,45 @@ mod tests {
 
     fn bearing(t: f64, az: f64, zen: f64) -> Bearing {
         Bearing { t, array_id: 0, azimuth_rad: az, zenith_rad: zen, residual: 0.0, quality: 5.0 }
+    }
+
+    #[test]
+    fn slow_trend_recovers_a_drift_drops_a_wild_bearing_and_tells_a_step_by_its_halves() {
+        // Nine bearings over 1.5 s (one per 0.17 s, the chip's DoA rate), 0.3° of noise per
+        // component (azimuth·sin zenith, zenith).
+        let sigma = 0.3f64.to_radians();
+        let config = DoaConfig { window_s: 1.5, ..DoaConfig::default() };
+        let run = |azimuth: &dyn Fn(f64) -> f64, seed: u64| {
+            let mut rng = Rng::new(seed);
+            let mut w = DoaWindow::new(config.clone());
+            let mut t = 0.0;
+            while t <= 3.0 {
+                let az = wrap_pi(azimuth(t) + sigma / 1.3f64.sin() * rng.normal());
+                w.push(bearing(t, az, 1.3 + sigma * rng.normal()));
+                t += 8192.0 / 48_000.0;
+            }
+            w.trend(w.latest_t().unwrap()).unwrap()
+        };
+        let sin = 1.3f64.sin();
+        let rate = 2.4f64.to_radians();
+        for seed in 1..6 {
+            // A drift of 2.4°/s in azimuth across ±π: its rate (× sin zenith) within 3 standard
+            // errors, both halves turning with it, the noise near the true 0.3°.
+            let drift = run(&|t| 3.1 + rate * t, seed);
+            let se = sigma / drift.time_spread_s;
+            assert!((drift.angular_rate - sin * rate).abs() < 3.0 * se, "seed {seed}: {drift:?}");
+            assert!(drift.halves_rate > 0.25 * drift.angular_rate, "seed {seed}: {drift:?}");
+            assert!(drift.noise_rad > 0.4 * sigma && drift.noise_rad < 2.0 * sigma, "{drift:?}");
+            // The same drift with one bearing 10° off: the refit leaves it out.
+            let wild =
+                run(&|t| 3.1 + rate * t + if (t - 2.5).abs() < 0.09 { 0.17 } else { 0.0 }, seed);
+            assert!((wild.angular_rate - sin * rate).abs() < 3.0 * se, "seed {seed}: {wild:?}");
+            // A still bearing that steps 3° in the span's middle: a least-squares slope, but
+            // halves that barely turn.
+            let step = run(&|t| 0.5 + if t >= 2.25 { 3f64.to_radians() } else { 0.0 }, seed);
+            assert!(step.angular_rate > 1f64.to_radians(), "seed {seed}: {step:?}");
+            assert!(step.halves_rate < 0.25 * step.angular_rate, "seed {seed}: {step:?}");
+        }
     }
 
     #[test]

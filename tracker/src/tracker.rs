@@ -141,6 +141,14 @@ pub struct TrackerConfig {
     pub heard_window_s: f64,
 }
 
+impl TrackerConfig {
+    /// The slow DoA trend's window: the DoA window's tunables over
+    /// [`MotionConfig::slow_span_s`].
+    pub fn slow_doa_config(&self) -> crate::doa::DoaConfig {
+        crate::doa::DoaConfig { window_s: self.motion.slow_span_s, ..self.doa.clone() }
+    }
+}
+
 impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
@@ -296,6 +304,8 @@ pub struct Tracker {
     array_index: usize,
     profile: Profile,
     window: DoaWindow,
+    /// The bearings of the slow DoA trend ([`MotionConfig::slow_span_s`]).
+    slow_window: DoaWindow,
     /// Recent BPF frames.
     spectra: VecDeque<BpfFrame>,
     classifier: MotionClassifier,
@@ -474,6 +484,7 @@ impl Tracker {
         };
         Ok(Self {
             window: DoaWindow::new(config.doa.clone()),
+            slow_window: DoaWindow::new(config.slow_doa_config()),
             classifier: MotionClassifier::new(config.motion.clone()),
             calibration: HoverCalibration::new(&profile),
             speed: SpeedIntegrator::new(&profile),
@@ -635,7 +646,10 @@ impl Tracker {
         };
         self.latest_input_t = t;
         match input {
-            Input::Bearing(b) => self.window.push(b),
+            Input::Bearing(b) => {
+                self.window.push(b);
+                self.slow_window.push(b);
+            }
             Input::Spectrum(s) => self.add_spectrum(&s),
             Input::Beacon(_) | Input::Snippet(_) => {}
         }
@@ -770,6 +784,7 @@ impl Tracker {
         let c = &self.config;
         self.array_index = index;
         self.window = DoaWindow::new(c.doa.clone());
+        self.slow_window = DoaWindow::new(c.slow_doa_config());
         self.speed = SpeedIntegrator::new(&self.profile);
         self.wake.iter_mut().for_each(WakeSpeed::reset);
         self.split.iter_mut().for_each(WakeSplit::reset);
@@ -937,6 +952,7 @@ impl Tracker {
     fn restart(&mut self) {
         let c = &self.config;
         self.window = DoaWindow::new(c.doa.clone());
+        self.slow_window = DoaWindow::new(c.slow_doa_config());
         self.classifier = MotionClassifier::new(c.motion.clone());
         self.speed = SpeedIntegrator::new(&self.profile);
         self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
@@ -1162,7 +1178,9 @@ impl Tracker {
         let short = doa.and_then(|d| {
             self.window.state_over(d.t, c.motion_doa_span_s, c.motion_doa_min_bearings)
         });
-        let doa_cues = doa.zip(short).map(|(long, short)| DoaCues { long, short });
+        let slow =
+            doa.filter(|_| c.motion.slow_span_s > 0.0).and_then(|d| self.slow_window.trend(d.t));
+        let doa_cues = doa.zip(short).map(|(long, short)| DoaCues { long, short, slow });
         let motion = self.classifier.update(t, doa_cues);
         let groups = self.spectra.back().map_or(0, |s| s.groups);
         if motion == MotionClass::Hover && !excess_significant {
