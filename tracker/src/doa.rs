@@ -125,6 +125,9 @@ fn slopes(ts: &[f64], az: &[f64], zen: &[f64], keep: &[usize], sin: f64) -> Slop
 #[derive(Clone, Debug)]
 pub struct DoaWindow {
     config: DoaConfig,
+    /// How long bearings are kept, s: at least `config.window_s`, longer for a [`Trend`]
+    /// over a longer span.
+    history_s: f64,
     bearings: VecDeque<Bearing>,
 }
 
@@ -143,7 +146,15 @@ fn line_fit(t: &[f64], y: &[f64], t_eval: f64) -> (f64, f64, Vec<f64>, f64) {
 impl DoaWindow {
     /// An empty window.
     pub fn new(config: DoaConfig) -> Self {
-        Self { config, bearings: VecDeque::new() }
+        let history_s = config.window_s;
+        Self { config, history_s, bearings: VecDeque::new() }
+    }
+
+    /// An empty window that keeps its bearings for `history_s` (s) if that is longer than its
+    /// `window_s`, for [`DoaWindow::trend`] over such a span; the states see `window_s` only.
+    pub fn with_history(config: DoaConfig, history_s: f64) -> Self {
+        let history_s = config.window_s.max(history_s);
+        Self { config, history_s, bearings: VecDeque::new() }
     }
 
     /// The tunables.
@@ -151,14 +162,14 @@ impl DoaWindow {
         &self.config
     }
 
-    /// Adds a bearing (in time order) and forgets those older than the window.
+    /// Adds a bearing (in time order) and forgets those older than the window's history.
     pub fn push(&mut self, b: Bearing) {
         if !(b.azimuth_rad.is_finite() && b.zenith_rad.is_finite() && b.t.is_finite()) {
             return;
         }
         self.bearings.push_back(b);
         while let Some(first) = self.bearings.front() {
-            if first.t < b.t - self.config.window_s {
+            if first.t < b.t - self.history_s {
                 self.bearings.pop_front();
             } else {
                 break;
@@ -171,12 +182,11 @@ impl DoaWindow {
         self.bearings.back().map(|b| b.t)
     }
 
-    /// The window's bearings from `t − window_s` to `t`, oldest first, with their times,
-    /// azimuths unwrapped around the newest one (so the span never straddles ±π) and zeniths.
-    fn span(&self, t: f64) -> (Vec<&Bearing>, [Vec<f64>; 3]) {
-        let c = &self.config;
+    /// The bearings from `t − span_s` to `t`, oldest first, with their times, azimuths
+    /// unwrapped around the newest one (so the span never straddles ±π) and zeniths.
+    fn span(&self, t: f64, span_s: f64) -> (Vec<&Bearing>, [Vec<f64>; 3]) {
         let pts: Vec<&Bearing> =
-            self.bearings.iter().filter(|b| b.t >= t - c.window_s && b.t <= t + 1e-9).collect();
+            self.bearings.iter().filter(|b| b.t >= t - span_s && b.t <= t + 1e-9).collect();
         let reference = pts.last().map_or(0.0, |b| b.azimuth_rad);
         let ts = pts.iter().map(|b| b.t).collect();
         let az = pts.iter().map(|b| reference + wrap_pi(b.azimuth_rad - reference)).collect();
@@ -184,10 +194,10 @@ impl DoaWindow {
         (pts, [ts, az, zen])
     }
 
-    /// The trend of the window's bearings up to `t` ([`Trend`]), or `None` with fewer than
-    /// four bearings kept.
-    pub fn trend(&self, t: f64) -> Option<Trend> {
-        let (pts, [ts, az, zen]) = self.span(t);
+    /// The trend of the bearings of the last `span_s` (s, within the window's history) up to
+    /// `t` ([`Trend`]), or `None` with fewer than four bearings kept.
+    pub fn trend(&self, t: f64, span_s: f64) -> Option<Trend> {
+        let (pts, [ts, az, zen]) = self.span(t, span_s.min(self.history_s));
         if pts.len() < 4 {
             return None;
         }
@@ -202,7 +212,7 @@ impl DoaWindow {
             let r: Vec<(f64, f64)> = (0..pts.len())
                 .map(|i| (sin * (az[i] - za - sa * (ts[i] - t)), zen[i] - zz - sz * (ts[i] - t)))
                 .collect();
-            (r, sin, stt)
+            (r, sin, stt, (sin * sa, sz))
         };
         let robust_sigma = |r: &[(f64, f64)], keep: &[usize]| {
             let mut abs: Vec<f64> =
@@ -210,16 +220,15 @@ impl DoaWindow {
             abs.sort_by(f64::total_cmp);
             1.4826 * crate::iqr::quantile_sorted(&abs, 0.5)
         };
-        let (r, _, _) = residuals(&all);
+        let (r, _, _, _) = residuals(&all);
         let cut = 3.0 * robust_sigma(&r, &all);
         let kept: Vec<usize> =
             all.iter().copied().filter(|&i| r[i].0.abs() <= cut && r[i].1.abs() <= cut).collect();
         let keep = if kept.len() >= 4 { kept } else { all };
-        let (r, sin, stt) = residuals(&keep);
+        let (r, sin, stt, whole) = residuals(&keep);
         if stt <= 0.0 {
             return None;
         }
-        let whole = slopes(&ts, &az, &zen, &keep, sin);
         let rate = whole.0.hypot(whole.1);
         // Each half's slopes projected on the whole span's direction of motion.
         let mid = 0.5 * (ts[keep[0]] + ts[keep[keep.len() - 1]]);
@@ -251,7 +260,7 @@ impl DoaWindow {
     /// (the `moving` test accounts for it); `min_count` keeps enough bearings for a trend.
     pub fn state_over(&self, t: f64, span_s: f64, min_count: usize) -> Option<DoaState> {
         let c = &self.config;
-        let (in_window, [ts, az, zen]) = self.span(t);
+        let (in_window, [ts, az, zen]) = self.span(t, c.window_s);
         let recent = in_window.iter().filter(|b| b.t >= t - span_s).count();
         let skip = in_window.len() - recent.max(min_count).min(in_window.len());
         let pts = &in_window[skip..];
@@ -356,17 +365,17 @@ mod tests {
         // Nine bearings over 1.5 s (one per 0.17 s, the chip's DoA rate), 0.3° of noise per
         // component (azimuth·sin zenith, zenith).
         let sigma = 0.3f64.to_radians();
-        let config = DoaConfig { window_s: 1.5, ..DoaConfig::default() };
+        let config = DoaConfig::default();
         let run = |azimuth: &dyn Fn(f64) -> f64, seed: u64| {
             let mut rng = Rng::new(seed);
-            let mut w = DoaWindow::new(config.clone());
+            let mut w = DoaWindow::with_history(config.clone(), 1.5);
             let mut t = 0.0;
             while t <= 3.0 {
                 let az = wrap_pi(azimuth(t) + sigma / 1.3f64.sin() * rng.normal());
                 w.push(bearing(t, az, 1.3 + sigma * rng.normal()));
                 t += 8192.0 / 48_000.0;
             }
-            w.trend(w.latest_t().unwrap()).unwrap()
+            w.trend(w.latest_t().unwrap(), 1.5).unwrap()
         };
         let sin = 1.3f64.sin();
         let rate = 2.4f64.to_radians();

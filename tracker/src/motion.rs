@@ -475,7 +475,7 @@ impl MotionClassifier {
     /// the pooled bearing noise (which the full window updates); and the slow span's trend:
     /// its rate in standard errors and the share of it its halves turned the same way
     /// ([`crate::doa::Trend::halves_rate`] over the rate).
-    fn short_trend(&mut self, d: &DoaCues) -> (bool, bool, (f64, f64)) {
+    fn doa_trends(&mut self, d: &DoaCues) -> (bool, bool, (f64, f64)) {
         let c = &self.config;
         let (l, s) = (&d.long, &d.short);
         if l.inliers >= c.doa_min_pooled_inliers && l.noise_rad.is_finite() {
@@ -513,7 +513,7 @@ impl MotionClassifier {
     /// current DoA).
     pub fn update(&mut self, t: f64, doa: Option<DoaCues>) -> MotionClass {
         let (doa_moving, doa_still, (slow_sigmas, slow_halves)) =
-            doa.map_or((false, false, (0.0, 0.0)), |d| self.short_trend(&d));
+            doa.map_or((false, false, (0.0, 0.0)), |d| self.doa_trends(&d));
         // Hysteresis: a slow trend starts a motion at SLOW_START_SIGMAS with both halves
         // turning, holds one at SLOW_HOLD_SIGMAS.
         let slow_moving = slow_sigmas > SLOW_START_SIGMAS && slow_halves >= SLOW_HALVES_SHARE;
@@ -760,14 +760,10 @@ mod tests {
         (tilt + wake + sigma * rng.normal(), split)
     }
 
-    /// The DoA cues the tracker gives the classifier from `window` (its full window and the
-    /// short span of `tracker`'s configuration) and from `slow` (the slow trend's window), or
-    /// `None` before a bearing.
-    fn doa_cues(
-        window: &DoaWindow,
-        slow: &DoaWindow,
-        tracker: &crate::tracker::TrackerConfig,
-    ) -> Option<DoaCues> {
+    /// The DoA cues the tracker gives the classifier from `window` (its full window, the
+    /// short span and the slow trend's span of `tracker`'s configuration), or `None` before a
+    /// bearing.
+    fn doa_cues(window: &DoaWindow, tracker: &crate::tracker::TrackerConfig) -> Option<DoaCues> {
         window.latest_t().and_then(|tl| {
             let long = window.state(tl)?;
             let short = window.state_over(
@@ -775,19 +771,21 @@ mod tests {
                 tracker.motion_doa_span_s,
                 tracker.motion_doa_min_bearings,
             )?;
-            Some(DoaCues { long, short, slow: slow.trend(tl) })
+            let slow = window.trend(tl, tracker.motion.slow_span_s);
+            Some(DoaCues { long, short, slow })
         })
     }
 
-    /// Pushes a bearing at `t` (rad) into every window.
-    fn hear(windows: &mut [&mut DoaWindow], t: f64, azimuth_rad: f64, zenith_rad: f64) {
-        let b = Bearing { t, array_id: 0, azimuth_rad, zenith_rad, residual: 0.0, quality: 1.0 };
-        windows.iter_mut().for_each(|w| w.push(b));
-    }
-
-    /// The tracker's two DoA windows: the DoA window and the slow trend's.
-    fn windows(tracker: &crate::tracker::TrackerConfig) -> (DoaWindow, DoaWindow) {
-        (DoaWindow::new(tracker.doa.clone()), DoaWindow::new(tracker.slow_doa_config()))
+    /// Pushes a bearing at `t` (rad) into `window`.
+    fn hear(window: &mut DoaWindow, t: f64, azimuth_rad: f64, zenith_rad: f64) {
+        window.push(Bearing {
+            t,
+            array_id: 0,
+            azimuth_rad,
+            zenith_rad,
+            residual: 0.0,
+            quality: 1.0,
+        });
     }
 
     /// Runs the classifier over the leg with DoA noise `doa_sigma_rad`; returns the classes
@@ -796,7 +794,7 @@ mod tests {
         let mut rng = Rng::new(seed);
         let tracker = crate::tracker::TrackerConfig::default();
         let mut classifier = MotionClassifier::new(tracker.motion.clone());
-        let (mut window, mut slow) = windows(&tracker);
+        let mut window = tracker.doa_window();
         let (doa_period, bpf_period) = (8192.0 / 48_000.0, 12_288.0 / 48_000.0);
         let (mut next_doa, mut next_bpf, mut k) = (0.085, 0.256, 0usize);
         let mut out = Vec::new();
@@ -806,7 +804,7 @@ mod tests {
                 let (x, y, z): (f64, f64, f64) = (position(next_doa), 5.0, 2.0);
                 let azimuth = y.atan2(x) + doa_sigma_rad * rng.normal();
                 let zenith = x.hypot(y).atan2(z) + doa_sigma_rad * rng.normal();
-                hear(&mut [&mut window, &mut slow], next_doa, azimuth, zenith);
+                hear(&mut window, next_doa, azimuth, zenith);
                 next_doa += doa_period;
             }
             while next_bpf <= t {
@@ -815,7 +813,7 @@ mod tests {
                 next_bpf += bpf_period;
                 k += 1;
             }
-            out.push((t, classifier.update(t, doa_cues(&window, &slow, &tracker))));
+            out.push((t, classifier.update(t, doa_cues(&window, &tracker))));
         }
         out
     }
@@ -845,7 +843,7 @@ mod tests {
         let mut rng = Rng::new(seed);
         let tracker = crate::tracker::TrackerConfig { motion, ..Default::default() };
         let mut classifier = MotionClassifier::new(tracker.motion.clone());
-        let (mut window, mut slow) = windows(&tracker);
+        let mut window = tracker.doa_window();
         let (doa_period, bpf_period) = (8192.0 / 48_000.0, 12_288.0 / 48_000.0);
         let (mut next_doa, mut next_bpf) = (0.085, 0.256);
         let sigma = 0.5f64.to_radians();
@@ -856,7 +854,7 @@ mod tests {
                 let (x, y, z) = (x_at(next_doa), 12.0f64, 2.0f64);
                 let azimuth = y.atan2(x) + azimuth_fault(next_doa) + sigma * rng.normal();
                 let zenith = x.hypot(y).atan2(z) + sigma * rng.normal();
-                hear(&mut [&mut window, &mut slow], next_doa, azimuth, zenith);
+                hear(&mut window, next_doa, azimuth, zenith);
                 next_doa += doa_period;
             }
             while next_bpf <= t {
@@ -865,7 +863,7 @@ mod tests {
                 classifier.add_thrust(measured(next_bpf, tilt + 1e-3 * rng.normal(), false));
                 next_bpf += bpf_period;
             }
-            out.push((t, classifier.update(t, doa_cues(&window, &slow, &tracker))));
+            out.push((t, classifier.update(t, doa_cues(&window, &tracker))));
         }
         out
     }
@@ -1052,7 +1050,7 @@ mod tests {
         let mut rng = Rng::new(7);
         let tracker = crate::tracker::TrackerConfig::default();
         let mut c = MotionClassifier::new(config);
-        let (mut window, mut slow) = windows(&tracker);
+        let mut window = tracker.doa_window();
         let (doa_period, bpf_period) = (8192.0 / 48_000.0, 12_288.0 / 48_000.0);
         let (mut next_doa, mut next_bpf) = (0.085, 0.256);
         let mut out = Vec::new();
@@ -1061,7 +1059,7 @@ mod tests {
             while next_doa <= t {
                 let noise = 1.0f64.to_radians();
                 let (azimuth, zenith) = (0.8 + noise * rng.normal(), 1.29 + noise * rng.normal());
-                hear(&mut [&mut window, &mut slow], next_doa, azimuth, zenith);
+                hear(&mut window, next_doa, azimuth, zenith);
                 next_doa += doa_period;
             }
             while next_bpf <= t {
@@ -1072,7 +1070,7 @@ mod tests {
                 c.add_thrust(measured(next_bpf, excess, split));
                 next_bpf += bpf_period;
             }
-            out.push(c.update(t, doa_cues(&window, &slow, &tracker)));
+            out.push(c.update(t, doa_cues(&window, &tracker)));
         }
         (out, c)
     }

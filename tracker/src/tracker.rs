@@ -142,10 +142,10 @@ pub struct TrackerConfig {
 }
 
 impl TrackerConfig {
-    /// The slow DoA trend's window: the DoA window's tunables over
-    /// [`MotionConfig::slow_span_s`].
-    pub fn slow_doa_config(&self) -> crate::doa::DoaConfig {
-        crate::doa::DoaConfig { window_s: self.motion.slow_span_s, ..self.doa.clone() }
+    /// The tracker's DoA window: [`TrackerConfig::doa`], with the bearings kept for the slow
+    /// trend's span ([`MotionConfig::slow_span_s`]) too.
+    pub fn doa_window(&self) -> DoaWindow {
+        DoaWindow::with_history(self.doa.clone(), self.motion.slow_span_s)
     }
 }
 
@@ -304,8 +304,6 @@ pub struct Tracker {
     array_index: usize,
     profile: Profile,
     window: DoaWindow,
-    /// The bearings of the slow DoA trend ([`MotionConfig::slow_span_s`]).
-    slow_window: DoaWindow,
     /// Recent BPF frames.
     spectra: VecDeque<BpfFrame>,
     classifier: MotionClassifier,
@@ -483,8 +481,7 @@ impl Tracker {
             None => 0,
         };
         Ok(Self {
-            window: DoaWindow::new(config.doa.clone()),
-            slow_window: DoaWindow::new(config.slow_doa_config()),
+            window: config.doa_window(),
             classifier: MotionClassifier::new(config.motion.clone()),
             calibration: HoverCalibration::new(&profile),
             speed: SpeedIntegrator::new(&profile),
@@ -646,10 +643,7 @@ impl Tracker {
         };
         self.latest_input_t = t;
         match input {
-            Input::Bearing(b) => {
-                self.window.push(b);
-                self.slow_window.push(b);
-            }
+            Input::Bearing(b) => self.window.push(b),
             Input::Spectrum(s) => self.add_spectrum(&s),
             Input::Beacon(_) | Input::Snippet(_) => {}
         }
@@ -783,8 +777,7 @@ impl Tracker {
         };
         let c = &self.config;
         self.array_index = index;
-        self.window = DoaWindow::new(c.doa.clone());
-        self.slow_window = DoaWindow::new(c.slow_doa_config());
+        self.window = c.doa_window();
         self.speed = SpeedIntegrator::new(&self.profile);
         self.wake.iter_mut().for_each(WakeSpeed::reset);
         self.split.iter_mut().for_each(WakeSplit::reset);
@@ -951,8 +944,7 @@ impl Tracker {
     /// Forgets the flight after a silence: everything but the hover calibration.
     fn restart(&mut self) {
         let c = &self.config;
-        self.window = DoaWindow::new(c.doa.clone());
-        self.slow_window = DoaWindow::new(c.slow_doa_config());
+        self.window = c.doa_window();
         self.classifier = MotionClassifier::new(c.motion.clone());
         self.speed = SpeedIntegrator::new(&self.profile);
         self.wake = WakeSpeed::new(WakeConfig::default(), self.profile.wake_excess_per_mps());
@@ -1178,8 +1170,9 @@ impl Tracker {
         let short = doa.and_then(|d| {
             self.window.state_over(d.t, c.motion_doa_span_s, c.motion_doa_min_bearings)
         });
-        let slow =
-            doa.filter(|_| c.motion.slow_span_s > 0.0).and_then(|d| self.slow_window.trend(d.t));
+        let slow = doa
+            .filter(|_| c.motion.slow_span_s > 0.0)
+            .and_then(|d| self.window.trend(d.t, c.motion.slow_span_s));
         let doa_cues = doa.zip(short).map(|(long, short)| DoaCues { long, short, slow });
         let motion = self.classifier.update(t, doa_cues);
         let groups = self.spectra.back().map_or(0, |s| s.groups);
