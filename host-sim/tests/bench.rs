@@ -39,6 +39,17 @@ fn ci_suite_runs_every_seed_and_filter_and_summarises_them() {
         assert!(m.is_finite() && m > 0.0, "{r:?}");
         let a: f64 = r[avail].parse().unwrap();
         assert!((0.0..=1.0).contains(&a), "{r:?}");
+        // The accuracy is the recalls' mean weighted by each true class's fixes, so it lies
+        // between the smallest and the largest recall of the classes the run has.
+        let acc: f64 = r[column(header, "motion_accuracy")].parse().unwrap();
+        let recalls: Vec<f64> = ["hover", "yaw", "horizontal", "vertical"]
+            .iter()
+            .filter_map(|c| r[column(header, &format!("recall_{c}"))].parse().ok())
+            .collect();
+        assert!(!recalls.is_empty(), "{r:?}");
+        let lo = recalls.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = recalls.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        assert!(lo - 1e-4 <= acc && acc <= hi + 1e-4, "{r:?}");
     }
 
     // The summary is the mean and sample sd over seeds of the per-run figures.
@@ -62,6 +73,8 @@ fn ci_suite_runs_every_seed_and_filter_and_summarises_them() {
     assert!(std::fs::read_to_string(out.join("summary.md"))
         .unwrap()
         .contains("| short-leg | aim | 2 |"));
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(md.contains("| family | filter | hover | yaw | horizontal | vertical |"), "{md}");
 
     // Truth stays in truth: the site file names no clock and no airframe key; the truth file
     // holds the airframe this seed drew.

@@ -33,8 +33,10 @@
 //!
 //! Each seed replaces the scenario's `seed`, so it draws the noise, the microphones' mismatch,
 //! the airframe and (for a random walk) the course. Writes `DIR/runs.csv` (one row per family,
-//! seed and filter), `DIR/summary.csv` and `DIR/summary.md` (per family and filter, mean ± sd
-//! over seeds), and each run's `fly` output under `DIR/runs/<family>/seed-<n>/`.
+//! seed and filter; the last four columns each true motion class's recall), `DIR/summary.csv`
+//! and `DIR/summary.md` (per family and filter, mean ± sd over seeds, then the motion class
+//! by the truth's class pooled over seeds), and each run's `fly` output under
+//! `DIR/runs/<family>/seed-<n>/`.
 //!
 //! `--rescore FROM` skips the simulation: it tracks the frames an earlier bench of the same
 //! suite stored under `FROM/runs/<family>/seed-<n>/` (their bytes in link order, with the site
@@ -53,7 +55,7 @@ use serde::Deserialize;
 use aim_tracker::filter::FilterKind;
 use aim_tracker::profile::Profile;
 use aim_tracker::zenith::ZenithCorrection;
-use host_sim::eval::metrics::Summary;
+use host_sim::eval::metrics::{class_index, recall, Summary, CLASSES};
 use host_sim::scenario::Scenario;
 
 use super::fly::{filter_name, track, track_recorded, Recorded, Tracking};
@@ -382,13 +384,17 @@ fn aggregate(suite: &Suite, results: &[RunResult]) -> Vec<Row> {
 /// The CSV of one row per run.
 pub fn runs_csv(results: &[RunResult]) -> String {
     let mut s = String::from(
-        "family,seed,filter,mean_m,median_m,p90_m,availability,fixes,due,motion_accuracy,los_accuracy,live_mean_m,good_availability,sync_max_us,coverage_95\n",
+        "family,seed,filter,mean_m,median_m,p90_m,availability,fixes,due,motion_accuracy,los_accuracy,live_mean_m,good_availability,sync_max_us,coverage_95,recall_hover,recall_yaw,recall_horizontal,recall_vertical\n",
     );
     for r in results {
         let m = &r.summary;
+        let recalls: Vec<String> = CLASSES
+            .iter()
+            .map(|&c| m.class_recall(c).map_or(String::new(), |x| format!("{x:.4}")))
+            .collect();
         let _ = writeln!(
             s,
-            "{},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{:.4},{},{:.4},{:.4},{},{:.4}",
+            "{},{},{},{:.4},{:.4},{:.4},{:.4},{},{},{:.4},{},{:.4},{:.4},{},{:.4},{}",
             r.family,
             r.seed,
             filter_name(r.filter),
@@ -404,9 +410,49 @@ pub fn runs_csv(results: &[RunResult]) -> String {
             m.good_availability,
             if r.sync_max_us.is_finite() { format!("{:.2}", r.sync_max_us) } else { String::new() },
             m.coverage_95,
+            recalls.join(","),
         );
     }
     s
+}
+
+/// The markdown table of motion class by the truth's class: per family and filter, of the
+/// fixes at instants of each true class (pooled over the seeds), the share that name it, and
+/// how many fixes that is.
+fn class_table(suite: &Suite, results: &[RunResult]) -> String {
+    let mut md = String::from(
+        "Motion class by the truth's class: of the fixes at instants the drone truly hovers, \
+         yaws, moves horizontally or vertically (pooled over the seeds), the share whose class \
+         is that one, and their number.\n\n\
+         | family | filter | hover | yaw | horizontal | vertical |\n|---|---|---|---|---|---|\n",
+    );
+    for fam in &suite.families {
+        for &filter in &suite.filters {
+            let mut counts = [[0usize; 4]; 4];
+            let mut any = false;
+            for r in results.iter().filter(|r| r.family == fam.name && r.filter == filter) {
+                any = true;
+                for (row, add) in counts.iter_mut().zip(&r.summary.class_counts) {
+                    for (c, a) in row.iter_mut().zip(add) {
+                        *c += a;
+                    }
+                }
+            }
+            if !any {
+                continue;
+            }
+            let cells: Vec<String> = CLASSES
+                .iter()
+                .map(|&c| {
+                    let n: usize = counts[class_index(c)].iter().sum();
+                    recall(&counts, c).map_or("—".into(), |x| format!("{:.1} % ({n})", 100.0 * x))
+                })
+                .collect();
+            let _ =
+                writeln!(md, "| {} | {} | {} |", fam.name, filter_name(filter), cells.join(" | "));
+        }
+    }
+    md
 }
 
 /// The summary as CSV and as a markdown table.
@@ -461,6 +507,8 @@ fn summary_tables(suite: &Suite, results: &[RunResult], seeds_label: &str) -> (S
             100.0 * st[8].1,
         );
     }
+    md.push('\n');
+    md.push_str(&class_table(suite, results));
     (csv, md)
 }
 

@@ -70,6 +70,38 @@ pub struct Summary {
     /// (`eᵀ C⁻¹ e ≤` [`CHI2_3DOF_95`]): 0.95 when the reported covariance is honest, less
     /// when it is overconfident. A singular covariance counts as outside.
     pub coverage_95: f64,
+    /// The motion-class confusion counts: `class_counts[truth][reported]` fixes, classes in
+    /// [`CLASSES`] order (hover, yaw, horizontal, vertical).
+    pub class_counts: [[usize; 4]; 4],
+}
+
+/// The motion classes in the order of [`Summary::class_counts`].
+pub const CLASSES: [MotionClass; 4] =
+    [MotionClass::Hover, MotionClass::Yaw, MotionClass::Horizontal, MotionClass::Vertical];
+
+/// Index of a class in [`CLASSES`].
+pub fn class_index(c: MotionClass) -> usize {
+    match c {
+        MotionClass::Hover => 0,
+        MotionClass::Yaw => 1,
+        MotionClass::Horizontal => 2,
+        MotionClass::Vertical => 3,
+    }
+}
+
+impl Summary {
+    /// Of the fixes at instants whose true class is `truth`, the fraction that name it
+    /// (`None` when no fix falls in that class).
+    pub fn class_recall(&self, truth: MotionClass) -> Option<f64> {
+        recall(&self.class_counts, truth)
+    }
+}
+
+/// The recall of one true class from confusion counts (`None` without fixes in that class).
+pub fn recall(counts: &[[usize; 4]; 4], truth: MotionClass) -> Option<f64> {
+    let i = class_index(truth);
+    let n: usize = counts[i].iter().sum();
+    (n > 0).then(|| counts[i][i] as f64 / n as f64)
 }
 
 /// The normalised estimation error squared `eᵀ C⁻¹ e` (dimensionless), or `None` when `c`
@@ -106,6 +138,7 @@ pub fn evaluate(
     let mut errors = Vec::new();
     let mut live_errors = Vec::new();
     let mut class_right = 0;
+    let mut class_counts = [[0usize; 4]; 4];
     let mut los_right = 0;
     let mut los_known = 0;
     let mut counted = 0;
@@ -130,9 +163,11 @@ pub fn evaluate(
         let live = truth_at(truth, live_t)
             .map_or_else(|| truth.rows.last().map_or(p, |r| r.position), |(q, _, _)| q);
         live_errors.push(distance(live));
-        if f.motion == MotionClass::of_kinematics(v, w, MOVING_MPS, YAWING_RAD_S) {
+        let truth_class = MotionClass::of_kinematics(v, w, MOVING_MPS, YAWING_RAD_S);
+        if f.motion == truth_class {
             class_right += 1;
         }
+        class_counts[class_index(truth_class)][class_index(f.motion)] += 1;
         let i = truth.rows.partition_point(|r| r.t_s <= t).min(truth.rows.len().saturating_sub(1));
         if let Some(&los) = truth.rows.get(i).and_then(|r| r.los.get(array_index)) {
             los_known += 1;
@@ -156,6 +191,7 @@ pub fn evaluate(
         motion_accuracy: class_right as f64 / n,
         los_accuracy: (los_known > 0).then(|| los_right as f64 / los_known as f64),
         coverage_95: covered as f64 / n,
+        class_counts,
     }
 }
 
@@ -233,6 +269,12 @@ mod tests {
             / 16.0;
         assert!((s.live_mean_m - expected).abs() < 1e-9, "{} vs {expected}", s.live_mean_m);
         assert!((s.motion_accuracy - 13.0 / 16.0).abs() < 1e-12, "{}", s.motion_accuracy);
+        // The truth moves throughout: 13 fixes say horizontal, the first 3 hover.
+        let mut counts = [[0; 4]; 4];
+        counts[2] = [3, 0, 13, 0];
+        assert_eq!(s.class_counts, counts);
+        assert_eq!(s.class_recall(MotionClass::Horizontal), Some(13.0 / 16.0));
+        assert_eq!(s.class_recall(MotionClass::Hover), None);
         assert_eq!(s.los_accuracy, Some(1.0));
         assert!((s.coverage_95 - 3.0 / 16.0).abs() < 1e-12, "{}", s.coverage_95);
     }
