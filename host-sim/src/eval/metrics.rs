@@ -137,7 +137,6 @@ pub fn evaluate(
     let due = (last_k - first_k + 1).max(0) as usize;
     let mut errors = Vec::new();
     let mut live_errors = Vec::new();
-    let mut class_right = 0;
     let mut class_counts = [[0usize; 4]; 4];
     let mut los_right = 0;
     let mut los_known = 0;
@@ -164,9 +163,6 @@ pub fn evaluate(
             .map_or_else(|| truth.rows.last().map_or(p, |r| r.position), |(q, _, _)| q);
         live_errors.push(distance(live));
         let truth_class = MotionClass::of_kinematics(v, w, MOVING_MPS, YAWING_RAD_S);
-        if f.motion == truth_class {
-            class_right += 1;
-        }
         class_counts[class_index(truth_class)][class_index(f.motion)] += 1;
         let i = truth.rows.partition_point(|r| r.t_s <= t).min(truth.rows.len().saturating_sub(1));
         if let Some(&los) = truth.rows.get(i).and_then(|r| r.los.get(array_index)) {
@@ -188,7 +184,7 @@ pub fn evaluate(
         live_mean_m: live_errors.iter().sum::<f64>() / n,
         fixes: counted,
         due,
-        motion_accuracy: class_right as f64 / n,
+        motion_accuracy: (0..4).map(|i| class_counts[i][i]).sum::<usize>() as f64 / n,
         los_accuracy: (los_known > 0).then(|| los_right as f64 / los_known as f64),
         coverage_95: covered as f64 / n,
         class_counts,
