@@ -36,8 +36,8 @@ fn main() -> anyhow::Result<()> {
         .filter(|n| n.ends_with(".f32"))
         .collect();
     names.sort();
-    // (frames, with, correct, octave)
-    let mut by: BTreeMap<String, [usize; 4]> = BTreeMap::new();
+    // (frames, with, correct, octave, octave below every rotor)
+    let mut by: BTreeMap<String, [usize; 5]> = BTreeMap::new();
     for n in names {
         let bytes = std::fs::read(dir.join(&n))?;
         let x: Vec<f32> =
@@ -47,7 +47,7 @@ fn main() -> anyhow::Result<()> {
         let parts: Vec<&str> = stem.split('_').collect();
         let key = format!("{}_{}", parts[0], parts[1]);
         let e = by.entry(key).or_default();
-        let mut case = [0usize; 4];
+        let mut case = [0usize; 5];
         if parts[0] == "d" {
             let truth = std::fs::read_to_string(dir.join(format!("{stem}.truth")))?;
             let truth: Vec<Vec<f64>> =
@@ -67,6 +67,9 @@ fn main() -> anyhow::Result<()> {
                     [0.5, 1.0 / 3.0, 2.0, 3.0].iter().any(|&k| (f - k * b).abs() <= 0.02 * k * b)
                 }) {
                     case[3] += 1;
+                    if tr.iter().all(|&b| f < b) {
+                        case[4] += 1;
+                    }
                 }
             }
         } else {
@@ -81,22 +84,23 @@ fn main() -> anyhow::Result<()> {
         if verbose {
             println!("{stem:40} {:3} {:3} {:3} {:3}", case[0], case[1], case[2], case[3]);
         }
-        for i in 0..4 {
+        for i in 0..5 {
             e[i] += case[i];
         }
     }
     let pct = |a: usize, b: usize| 100.0 * a as f64 / b.max(1) as f64;
-    let (mut d, mut nd) = ([0usize; 4], [0usize; 4]);
+    let (mut d, mut nd) = ([0usize; 5], [0usize; 5]);
     for (k, v) in &by {
         println!(
-            "{k:28} {:5} with {:5.1}% within {:5.1}% octave {:5.2}%",
+            "{k:28} {:5} with {:5.1}% within {:5.1}% octave {:5.2}% (below {:5.2}%)",
             v[0],
             pct(v[1], v[0]),
             pct(v[2], v[0]),
-            pct(v[3], v[0])
+            pct(v[3], v[0]),
+            pct(v[4], v[0])
         );
         let t = if k.starts_with("d_") { &mut d } else { &mut nd };
-        for i in 0..4 {
+        for i in 0..5 {
             t[i] += v[i];
         }
     }
