@@ -13,23 +13,18 @@
 //!    search range, the strongest [`MAX_CANDIDATES`].
 //! 3. **Blade or shaft line.** A rotor's spectrum has lines at multiples of its shaft rate; the
 //!    blade-passing ones (multiples of the blade count) are the strong ones. For a candidate
-//!    `f`, the level at each harmonic `h·f` (h ≤ 12: the largest whitened level within the
-//!    line search, the noise's level at least, as a natural log) is compared between the
-//!    multiples of m and the lines between them: the *contrast* is the median, over the lines
-//!    between, of the mean log level of the two neighbouring multiples minus the line's own,
-//!    over the triples with a line found, the lowest line left out (there several rotors'
-//!    shaft lines add up in one bin). A mean over many lines, because a hall's response
-//!    scatters each line's level by several dB. Up: when the contrast for m = 2 or 3 is at
-//!    least [`SHAFT_CONTRAST`], `f` was a shaft line and `m·f` is the BPF. Down: for the
-//!    sub-multiples `f/d` (d = 2, 3), when the lines between `f`'s harmonics stand less than
-//!    [`OWN_HARMONIC_CONTRAST`] below them, `f` is a harmonic of `f/d`: then `f/d`, itself
-//!    tested as a shaft line, if it is in the search range, else the candidate is dropped
-//!    (engines, mains hum, fans whose fundamental lies below the rotor range); it is also
-//!    dropped when the line at `f/d` lies below the search range and is at least as strong
-//!    as `f` by magnitude (a fan's fundamental; a rotor's shaft lines are 8–12 dB weaker).
-//!    Last, a second or third line [`BLADE_DOMINANCE`] times stronger than the first by
-//!    magnitude is the blade line, unless with it left out the lines between the multiples
-//!    are the stronger ones ([`BLADE_VETO`]).
+//!    `f` with line strengths `L(h)` (whitened level of the line nearest `h·f`, 0 when there is
+//!    none) the multiples `m·f` (m = 2, 3) stronger than `f` itself are tested: when the lines
+//!    between the multiples of `m` (h = m+1 ..= 3m) are weak (median level below
+//!    [`SHAFT_RATIO`] of the stronger neighbouring multiple; with none to compare, when `m·f`
+//!    is twice as strong as `f`), `f` was a shaft line and `m·f` is the BPF. Then the sub-multiples
+//!    `f/d` (d = 2, 3): when the lines between `f`'s harmonics are that strong, `f` is a
+//!    harmonic of a lower fundamental: `f/d` if that is in the search range, else the candidate
+//!    is dropped (engines, mains hum, fans whose fundamental lies below the rotor range); it is
+//!    also dropped when the line at `f/d` lies below the search range and is at least as strong
+//!    as `f` by magnitude (a fan's fundamental; a rotor's shaft lines are 8–12 dB weaker). The
+//!    lowest line is left out of both tests: there several rotors' shaft lines add up in one
+//!    bin.
 //! 4. **Comb score.** Over harmonics `h = 1..=Config::harmonics` of the resolved fundamental:
 //!    a line is found when the largest `w` within ±r bins of `h·f` is a local maximum of at
 //!    least [`LINE_RATIO`] (r = 1 bin plus [`LINE_SEARCH`] of the line's frequency in bins, for
@@ -80,20 +75,8 @@ pub const MIN_LINES: u32 = 3;
 pub const MIN_HARMONICITY: f32 = 0.5;
 /// Score at which the quality reaches half the harmonicity.
 pub const QUALITY_SCALE: f32 = 30.0;
-/// Shaft-comb test ([`HarmonicLevels::multiple_contrast`], natural log units): a comb whose
-/// lines at the multiples of m stand this much above the lines between them on average
-/// (0.45: 3.9 dB) is a shaft comb and its m-th line the blade line. A rotor's shaft lines lie
-/// 8–12 dB under its blade lines; a rotor's own harmonics are about level with their
-/// neighbours' mean. Chosen with [`OWN_HARMONIC_CONTRAST`] among 0.3–0.9 on the BPF bench's
-/// tuning seeds 1–16 (BENCHMARKS.md issue 19, session 40).
-pub const SHAFT_CONTRAST: f32 = 0.45;
-/// Sub-harmonic test: a candidate is a harmonic of its half or third when the lines between
-/// its own harmonics stand less than this below them on average (0.3: 2.6 dB).
-pub const OWN_HARMONIC_CONTRAST: f32 = 0.3;
-/// A comb's second or third line [`BLADE_DOMINANCE`] times stronger than its first is not
-/// taken as the blade line when, with that line left out, the lines between the multiples
-/// stand more than this above them (−0.3: 2.6 dB; contrast below −0.3).
-pub const BLADE_VETO: f32 = -0.3;
+/// Shaft-line test: lines between the blade lines weaker than this fraction of them.
+pub const SHAFT_RATIO: f32 = 0.6;
 /// A comb's second or third harmonic this many times stronger than its first makes it the blade
 /// line ([`Spectrum::blade_line`]).
 pub const BLADE_DOMINANCE: f32 = 2.5;
@@ -273,37 +256,52 @@ impl Spectrum<'_> {
             .then_some(Line { bin: best, white: v })
     }
 
+    fn strength(&self, centre: f32) -> f32 {
+        self.line(centre).map_or(0.0, |l| l.white)
+    }
+
     /// Whether a comb at `bin` lies in the band for harmonic `h`.
     fn in_band(&self, centre: f32) -> bool {
         centre + self.search_radius(centre) as f32 + 2.5 < self.top as f32
     }
 
-    /// The largest whitened level within the line search around `centre` (0 outside the
-    /// band): a line's level, or the noise's where there is none.
-    fn level(&self, centre: f32) -> f32 {
-        let r = self.search_radius(centre);
-        let c = (centre + 0.5) as usize;
-        if c < r + 1 || c + r + 2 > self.top {
-            return 0.0;
-        }
-        let mut v = 0.0f32;
-        for &x in &self.white[c - r..=c + r] {
-            if x > v {
-                v = x;
-            }
-        }
-        v
-    }
-
     /// The blade-passing fundamental (bins) of a candidate line at `bin`, or `None` when the
     /// comb's fundamental lies below `min_bin`.
     fn resolve(&self, bin: f32, min_bin: f32, max_bin: f32) -> Option<f32> {
-        let levels = self.harmonic_levels(bin);
-        if let Some(up) = self.shaft_multiple(bin, &levels, max_bin) {
-            return Some(up);
+        let mut l = [0.0f32; CHECK_HARMONICS + 1];
+        let mut n = 0;
+        for (h, slot) in l.iter_mut().enumerate().skip(1) {
+            let c = h as f32 * bin;
+            if !self.in_band(c) {
+                break;
+            }
+            *slot = self.strength(c);
+            n = h;
         }
-        // Down: a harmonic of a lower fundamental, whose lines between this comb's are about
-        // as strong as this comb's own.
+        // Up: a shaft line whose multiples m carry the comb.
+        let mut best: Option<(f32, usize)> = None;
+        for m in 2..=3usize {
+            // The blade line is the rotor's strongest: a shaft line is weaker than its
+            // multiple.
+            if m as f32 * bin > max_bin || n < 2 * m || l[m] <= l[1] {
+                continue;
+            }
+            // No line in between to compare with: a multiple twice as strong decides alone.
+            let r = between_ratio(&l[..=n.min(3 * m)], m).unwrap_or(if l[m] >= 2.0 * l[1] {
+                0.0
+            } else {
+                1.0
+            });
+            if r < SHAFT_RATIO && best.is_none_or(|(b, _)| r < b) {
+                best = Some((r, m));
+            }
+        }
+        if let Some((_, m)) = best {
+            let c = m as f32 * bin;
+            return Some(self.line(c).map_or(c, |line| refine_peak(self.mags, line.bin).0));
+        }
+        // Down: a harmonic of a lower fundamental, whose lines between this comb's are as
+        // strong as this comb's own.
         for d in [2usize, 3] {
             let sub = bin / d as f32;
             // A line below the search range at least as strong as this one (by magnitude):
@@ -317,97 +315,44 @@ impl Spectrum<'_> {
             {
                 return None;
             }
-            // The comb at `sub`: its multiples of d are this comb's harmonics.
-            let mut below = HarmonicLevels::default();
-            for j in 1..=CHECK_HARMONICS {
+            let mut ls = [0.0f32; 3 * CHECK_HARMONICS / 2 + 1];
+            let mut ns = 0;
+            for (j, slot) in ls.iter_mut().enumerate().skip(1) {
                 let c = j as f32 * sub;
-                if !self.in_band(c) {
+                if j > 3 * d || !self.in_band(c) {
                     break;
                 }
-                if j % d == 0 {
-                    below.log[j] = levels.log[j / d];
-                    below.found[j] = levels.found[j / d];
-                } else {
-                    below.log[j] = log_level(self.level(c));
-                }
-                below.n = j;
+                *slot = if j % d == 0 { l[j / d] } else { self.strength(c) };
+                ns = j;
             }
-            if below.multiple_contrast(d).is_some_and(|c| c < OWN_HARMONIC_CONTRAST) {
-                if sub < min_bin {
-                    return None;
+            if ns >= 2 * d {
+                if let Some(r) = between_ratio(&ls[..=ns], d) {
+                    if r >= SHAFT_RATIO {
+                        return (sub >= min_bin).then_some(sub);
+                    }
                 }
-                // The lower fundamental may itself be a shaft line (a candidate at a shaft
-                // comb's third line).
-                let sub_levels = self.harmonic_levels(sub);
-                return Some(self.shaft_multiple(sub, &sub_levels, max_bin).unwrap_or(sub));
             }
         }
         Some(bin)
     }
 
-    /// The levels of the comb at `bin`'s harmonics `h = 1..=CHECK_HARMONICS` within the band.
-    fn harmonic_levels(&self, bin: f32) -> HarmonicLevels {
-        let mut out = HarmonicLevels::default();
-        for h in 1..=CHECK_HARMONICS {
-            let c = h as f32 * bin;
-            if !self.in_band(c) {
-                break;
-            }
-            out.log[h] = log_level(self.level(c));
-            out.found[h] = self.line(c).is_some();
-            out.n = h;
-        }
-        out
-    }
-
-    /// Up: when the comb at `bin` is a shaft comb whose multiples of m (2 or 3, the blade
-    /// count) carry the blade lines ([`SHAFT_CONTRAST`]), the blade line at `m · bin` (the
-    /// m of the larger contrast).
-    fn shaft_multiple(&self, bin: f32, levels: &HarmonicLevels, max_bin: f32) -> Option<f32> {
-        let mut best: Option<(f32, usize)> = None;
-        for m in 2..=3usize {
-            if m as f32 * bin > max_bin {
-                continue;
-            }
-            if let Some(c) = levels.multiple_contrast(m) {
-                if c >= SHAFT_CONTRAST && best.is_none_or(|(b, _)| c > b) {
-                    best = Some((c, m));
-                }
-            }
-        }
-        let (_, m) = best?;
-        let c = m as f32 * bin;
-        Some(self.line(c).map_or(c, |line| refine_peak(self.mags, line.bin).0))
-    }
-
     /// The blade line of a comb at `bin`: the rotor's strongest line. When its second or
     /// third harmonic is [`BLADE_DOMINANCE`] times stronger than the line at `bin` (a shaft
     /// line: several rotors a few per cent apart fill a shaft comb's gaps, so the
-    /// contrast test of [`Self::resolve`] may miss it), that multiple; unless the comb's
-    /// other lines contradict it ([`BLADE_VETO`]: one line raised by the room's response is
-    /// no blade line when the lines between the multiples are the stronger ones).
+    /// between-lines test of [`Self::resolve`] cannot tell), that multiple.
     fn blade_line(&self, bin: f32, max_bin: f32) -> f32 {
         // Line strengths as magnitudes: the whitening floor differs between the lines' blocks.
         let s1 = self.line(bin).map_or(0.0, |l| self.mags[l.bin]);
         let mut best = (bin, BLADE_DOMINANCE * s1);
-        let mut levels: Option<HarmonicLevels> = None;
-        for m in [2usize, 3] {
-            let c = m as f32 * bin;
+        for m in [2.0f32, 3.0] {
+            let c = m * bin;
             if c > max_bin {
                 break;
             }
-            let Some(line) = self.line(c) else { continue };
-            if self.mags[line.bin] <= best.1 {
-                continue;
-            }
-            // The pattern without the dominant line itself: its log level replaced by the
-            // mean of its neighbours'.
-            let mut l = *levels.get_or_insert_with(|| self.harmonic_levels(bin));
-            if m < l.n {
-                l.log[m] = 0.5 * (l.log[m - 1] + l.log[m + 1]);
-            }
-            if l.multiple_contrast(m).is_none_or(|v| v >= BLADE_VETO) {
-                best = (refine_peak(self.mags, line.bin).0, self.mags[line.bin]);
+            if let Some(line) = self.line(c) {
+                if self.mags[line.bin] > best.1 {
+                    best = (refine_peak(self.mags, line.bin).0, self.mags[line.bin]);
+                }
             }
         }
         best.0
@@ -642,58 +587,36 @@ fn in_cluster(reference_hz: f32, hz: f32) -> bool {
     libm::fabsf(reference_hz - hz) <= CLUSTER * reference_hz
 }
 
-/// Natural log of a whitened level, the noise's level (1) at least: a line below the noise
-/// counts as the noise.
-fn log_level(white: f32) -> f32 {
-    libm::logf(if white > 1.0 { white } else { 1.0 })
-}
-
-/// The levels at a comb's harmonics: natural logs of the whitened level ([`log_level`] of
-/// [`Spectrum::level`]) and whether a line is found there, index `h = 1..=n` (0 unused).
-#[derive(Debug, Clone, Copy, Default)]
-struct HarmonicLevels {
-    log: [f32; CHECK_HARMONICS + 1],
-    found: [bool; CHECK_HARMONICS + 1],
-    n: usize,
-}
-
-impl HarmonicLevels {
-    /// How much the lines at the multiples of `m` stand above the lines between them: the
-    /// median, over the harmonics `j > m` that are no multiple of `m`, of the mean log level
-    /// of the neighbouring multiples minus the log level at `j` (natural log units), over the
-    /// triples in which a line is found, up to the highest line found. `None` when there is
-    /// none. The first line is left out: below the blade fundamental several rotors' shaft
-    /// lines fall into one bin and add up, so it says nothing of the comb's pattern. Logs over
-    /// up to [`CHECK_HARMONICS`] lines, because the room's response scatters each line's level
-    /// by several dB and a test on one or two lines follows it; a median, because a comb's
-    /// last line beside the noise beyond it reads as a multiple standing far above its
-    /// neighbours (a mean over the same triples called clean 8-harmonic combs shaft combs).
-    fn multiple_contrast(&self, m: usize) -> Option<f32> {
-        let (l, found) = (&self.log, &self.found);
-        // Up to the comb's highest line: beyond it every level is the noise's.
-        let n = (1..=self.n).rev().find(|&h| found[h])?;
-        let mut d = [0.0f32; CHECK_HARMONICS];
-        let mut k = 0usize;
-        for j in m + 1..=n {
-            if j % m == 0 {
-                continue;
-            }
-            let (lo, hi) = (j / m * m, (j / m + 1) * m);
-            let above = hi <= n;
-            if !(found[j] || found[lo] || (above && found[hi])) {
-                continue;
-            }
-            let reference = if above { 0.5 * (l[lo] + l[hi]) } else { l[lo] };
-            d[k] = reference - l[j];
+/// The median, over the lines `l[j]` with `j > m` not a multiple of `m`, of their level relative to
+/// the stronger of the neighbouring multiples of `m` (`l[0]` unused; a missing line is 0; a
+/// ratio is capped at 2; a line whose neighbouring multiples are both missing is left out).
+/// `None` when no line has a neighbour to compare with.
+fn between_ratio(l: &[f32], m: usize) -> Option<f32> {
+    let n = l.len() - 1;
+    let mut r = [0.0f32; 24];
+    let mut k = 0;
+    // The first line is left out: below the blade fundamental, several rotors' shaft lines
+    // fall into one bin and add up, so it says nothing about the comb's pattern.
+    for j in m + 1..=n {
+        if j % m == 0 || k == r.len() {
+            continue;
+        }
+        let below = if j >= m { l[j / m * m] } else { 0.0 };
+        let above = if (j / m + 1) * m <= n { l[(j / m + 1) * m] } else { 0.0 };
+        let reference = below.max(above);
+        // A missing reference line says nothing: several rotors a few per cent apart and a
+        // speed wandering within the window smear a comb's upper lines out of the search.
+        if reference > 0.0 {
+            r[k] = (l[j] / reference).min(2.0);
             k += 1;
         }
-        if k == 0 {
-            return None;
-        }
-        let d = &mut d[..k];
-        d.sort_unstable_by(f32::total_cmp);
-        Some(if k % 2 == 1 { d[k / 2] } else { 0.5 * (d[k / 2 - 1] + d[k / 2]) })
     }
+    if k == 0 {
+        return None;
+    }
+    let r = &mut r[..k];
+    r.sort_unstable_by(f32::total_cmp);
+    Some(if k % 2 == 1 { r[k / 2] } else { 0.5 * (r[k / 2 - 1] + r[k / 2]) })
 }
 
 fn insert_strongest(cands: &mut [(usize, f32); MAX_CANDIDATES], n: &mut usize, c: (usize, f32)) {

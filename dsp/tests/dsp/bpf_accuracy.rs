@@ -286,35 +286,3 @@ fn the_shaft_comb_of_a_rotor_cluster_is_not_reported_as_a_bpf() {
         );
     }
 }
-
-/// A two-blade rotor (shaft 164 Hz, BPF 328 Hz) heard through a hall: each line's level is
-/// scattered by the room's response, as on the BPF bench. Its shaft lines (odd multiples of
-/// 164 Hz) lie 8 dB under its blade lines on average, but the room raised the first one (where
-/// four rotors' shaft lines add up) and the third one to the blade lines' level and lowered
-/// the blade line at 656 Hz. A test on the first few lines reads the shaft comb as a rotor at
-/// 164 Hz; over the comb's lines the blade lines stand above the shaft lines, and the BPF is
-/// 328 Hz. Golden levels (dB, shaft harmonics 1..=14) chosen for this test.
-#[test]
-fn a_shaft_comb_whose_first_lines_the_room_raised_is_reported_at_the_blade_line() {
-    let mut rng = Rng::new(0x164);
-    let shaft = 164.0;
-    let level_db =
-        [0.0, 0.0, 0.0, -9.0, -9.0, -4.0, -10.0, -5.0, -14.0, -6.0, -13.0, -8.0, -17.0, -9.0];
-    let mut x = vec![0.0; N];
-    for (i, db) in level_db.iter().enumerate() {
-        let f = shaft * (i + 1) as f64;
-        let a = 0.05 * 10f64.powf(db / 20.0);
-        let phase = 2.0 * PI * rng.uniform();
-        for (t, v) in x.iter_mut().enumerate() {
-            *v += a * (2.0 * PI * f * t as f64 / FS + phase).sin();
-        }
-    }
-    let peaks = analyse(&x, 20.0, &mut rng);
-    let bpfs: Vec<f32> = peaks[SETTLING..].iter().map(|p| p.bpf_hz).collect();
-    println!("{bpfs:.1?}");
-    assert!(
-        bpfs.iter().all(|&b| (f64::from(b) - 2.0 * shaft).abs() < 1.0),
-        "reported {bpfs:.1?}, BPF {}",
-        2.0 * shaft
-    );
-}
