@@ -6,6 +6,11 @@ use std::collections::BTreeMap;
 use aim_dsp::bpf::{SpectralPath, ANALYSIS_LEN};
 use aim_dsp::{Config, Geometry};
 
+/// Per clip or class: frames, frames with a BPF, within 2 Hz, octave errors, octave errors
+/// below every rotor (a shaft comb reported).
+const COUNTS: usize = 5;
+type Counts = [usize; COUNTS];
+
 fn frames(x: &[f32], config: &Config) -> Vec<Vec<f32>> {
     let mut path = SpectralPath::empty();
     path.configure(16_000, 1);
@@ -36,8 +41,7 @@ fn main() -> anyhow::Result<()> {
         .filter(|n| n.ends_with(".f32"))
         .collect();
     names.sort();
-    // (frames, with, correct, octave, octave below every rotor)
-    let mut by: BTreeMap<String, [usize; 5]> = BTreeMap::new();
+    let mut by: BTreeMap<String, Counts> = BTreeMap::new();
     for n in names {
         let bytes = std::fs::read(dir.join(&n))?;
         let x: Vec<f32> =
@@ -47,7 +51,7 @@ fn main() -> anyhow::Result<()> {
         let parts: Vec<&str> = stem.split('_').collect();
         let key = format!("{}_{}", parts[0], parts[1]);
         let e = by.entry(key).or_default();
-        let mut case = [0usize; 5];
+        let mut case: Counts = [0; COUNTS];
         if parts[0] == "d" {
             let truth = std::fs::read_to_string(dir.join(format!("{stem}.truth")))?;
             let truth: Vec<Vec<f64>> =
@@ -84,12 +88,12 @@ fn main() -> anyhow::Result<()> {
         if verbose {
             println!("{stem:40} {:3} {:3} {:3} {:3}", case[0], case[1], case[2], case[3]);
         }
-        for i in 0..5 {
+        for i in 0..COUNTS {
             e[i] += case[i];
         }
     }
     let pct = |a: usize, b: usize| 100.0 * a as f64 / b.max(1) as f64;
-    let (mut d, mut nd) = ([0usize; 5], [0usize; 5]);
+    let (mut d, mut nd): (Counts, Counts) = ([0; COUNTS], [0; COUNTS]);
     for (k, v) in &by {
         println!(
             "{k:28} {:5} with {:5.1}% within {:5.1}% octave {:5.2}% (below {:5.2}%)",
@@ -100,7 +104,7 @@ fn main() -> anyhow::Result<()> {
             pct(v[4], v[0])
         );
         let t = if k.starts_with("d_") { &mut d } else { &mut nd };
-        for i in 0..5 {
+        for i in 0..COUNTS {
             t[i] += v[i];
         }
     }
