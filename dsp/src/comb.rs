@@ -13,18 +13,27 @@
 //!    search range, the strongest [`MAX_CANDIDATES`].
 //! 3. **Blade or shaft line.** A rotor's spectrum has lines at multiples of its shaft rate; the
 //!    blade-passing ones (multiples of the blade count) are the strong ones. For a candidate
-//!    `f` with line strengths `L(h)` (whitened level of the line nearest `h·f`, 0 when there is
-//!    none) the multiples `m·f` (m = 2, 3) stronger than `f` itself are tested: when the lines
-//!    between the multiples of `m` (h = m+1 ..= 3m) are weak (median level below
-//!    [`SHAFT_RATIO`] of the stronger neighbouring multiple; with none to compare, when `m·f`
-//!    is twice as strong as `f`), `f` was a shaft line and `m·f` is the BPF. Then the sub-multiples
-//!    `f/d` (d = 2, 3): when the lines between `f`'s harmonics are that strong, `f` is a
-//!    harmonic of a lower fundamental: `f/d` if that is in the search range, else the candidate
-//!    is dropped (engines, mains hum, fans whose fundamental lies below the rotor range); it is
-//!    also dropped when the line at `f/d` lies below the search range and is at least as strong
-//!    as `f` by magnitude (a fan's fundamental; a rotor's shaft lines are 8–12 dB weaker). The
-//!    lowest line is left out of both tests: there several rotors' shaft lines add up in one
-//!    bin.
+//!    `f`, the level `L(h)` of each harmonic `h ≤ 12` in the band is the natural log of the
+//!    largest whitened level within the line search around `h·f` (at least 0, the noise). The
+//!    comb's extent is its highest found line within [`EXTENT_LOG`] of its strongest: past it,
+//!    what passes the line test is noise, distortion or leakage. The contrast for a multiple
+//!    `m` is the median, over the lines `j > m` between the multiples of `m` whose neighbouring
+//!    multiples lie within the extent, of the mean level of those two multiples minus `L(j)`;
+//!    the lowest line is left out (there several rotors' shaft lines add up in one bin, and
+//!    the room may raise it to the blade line's level).
+//!    - **Up:** contrast ≥ [`SHAFT_CONTRAST`] for `m = 2` or `3` (the larger wins, `m·f` in the
+//!      search range): `f` is a shaft line and `m·f` the BPF.
+//!    - **Down:** for `f/d` (d = 2, 3), with `f`'s levels at the multiples of `d`: contrast
+//!      < [`OWN_HARMONIC_CONTRAST`] makes `f` a harmonic of `f/d`. Then `f/d`, itself tested
+//!      as a shaft line (up), if it is in the search range; else the candidate is dropped
+//!      (engines, mains hum, fans whose fundamental lies below the rotor range). A candidate
+//!      is also dropped when the line at `f/d` lies below the search range and is at least as
+//!      strong as `f` by magnitude (a fan's fundamental; a rotor's shaft lines are 8–12 dB
+//!      weaker).
+//!    - **Dominant multiple** (`Spectrum::blade_line`): a second or third harmonic
+//!      [`BLADE_DOMINANCE`] times as strong as `f` by magnitude is the BPF, unless the
+//!      contrast at that multiple, with its own level replaced by its neighbours' mean, is
+//!      below [`BLADE_VETO`] (a blade comb with one line raised by the room).
 //! 4. **Comb score.** Over harmonics `h = 1..=Config::harmonics` of the resolved fundamental:
 //!    a line is found when the largest `w` within ±r bins of `h·f` is a local maximum of at
 //!    least [`LINE_RATIO`] (r = 1 bin plus [`LINE_SEARCH`] of the line's frequency in bins, for
@@ -41,6 +50,11 @@
 //!    analyses (1.02 s) before it is called a rotor; notes and vowels rarely do. A comb once
 //!    reported continues at [`HOLD_QUALITY`] of the starting quality (hysteresis), and a
 //!    reported comb missed by one analysis keeps its place in the history for the next.
+//!    Groups are taken strongest score first (between equal scores, the louder: clean
+//!    recordings cap every line), those continuing a reported comb before all others: a
+//!    harmonically related comb of one analysis (a shaft comb, or the comb at twice the BPF,
+//!    read from one noisy spectrum) is dropped as related to the reported one instead of
+//!    pushing it out.
 //! 7. **Shaft combs.** Of the groups to report, one whose double or triple lies in the rotor
 //!    cluster ([`CLUSTER`]) of another reported group is a rotor's shaft comb and is left out
 //!    when that group's first line, or its own line at the multiple, is at least
@@ -75,10 +89,28 @@ pub const MIN_LINES: u32 = 3;
 pub const MIN_HARMONICITY: f32 = 0.5;
 /// Score at which the quality reaches half the harmonicity.
 pub const QUALITY_SCALE: f32 = 30.0;
-/// Shaft-line test: lines between the blade lines weaker than this fraction of them.
-pub const SHAFT_RATIO: f32 = 0.6;
+/// Shaft-line test (`Spectrum::resolve`): a candidate is a shaft line, and its multiple `m`
+/// the blade line, when the lines between the multiples of `m` lie at least this far (natural
+/// log, 0.45 = 3.9 dB) under the mean of their neighbouring multiples (the median contrast).
+/// Chosen among 0.3–0.9 on the BPF bench's tuning seeds 1–16 (BENCHMARKS.md issue 19, session
+/// 40: 0.35 gave 79.15 % within 2 Hz and 1.04 % octave errors, 0.55 81.85 % and 1.30 %, with
+/// that session's version of the test; landed in session 41).
+pub const SHAFT_CONTRAST: f32 = 0.45;
+/// Own-harmonic test: a candidate is a harmonic of its sub-multiple `f/d` when the lines
+/// between its own lie less than this far (natural log, 0.3 = 2.6 dB) under them (measured at
+/// 0.15–0.45 on the same seeds).
+pub const OWN_HARMONIC_CONTRAST: f32 = 0.3;
+/// The blade-line promotion (`Spectrum::blade_line`) is vetoed when the comb's contrast at
+/// the multiple, with the promoted line's own level replaced by its neighbours' mean, is
+/// below this (natural log): the lines between its multiples are stronger than they, so the
+/// comb is a blade comb with one line raised by the room (measured off and at −0.5…−0.1).
+pub const BLADE_VETO: f32 = -0.3;
+/// A comb's lines count for the contrast up to its highest found line within this factor
+/// (natural log, 3.4 ≈ 30×) of its strongest: past a comb's last strong line, what passes the
+/// line test is noise, distortion or leakage, which would decide the edge triples.
+pub const EXTENT_LOG: f32 = 3.4;
 /// A comb's second or third harmonic this many times stronger than its first makes it the blade
-/// line ([`Spectrum::blade_line`]).
+/// line (`Spectrum::blade_line`).
 pub const BLADE_DOMINANCE: f32 = 2.5;
 /// A passing group whose double or triple lies in another's rotor cluster is a shaft comb when
 /// that one's first line, or its own line at the multiple, is this many times as strong as
@@ -238,7 +270,9 @@ impl Spectrum<'_> {
         1 + (centre * LINE_SEARCH) as usize
     }
 
-    fn line(&self, centre: f32) -> Option<Line> {
+    /// The bin of the largest whitened level within the line search around `centre`, and
+    /// that level (`None` when the search reaches past the band).
+    fn window_peak(&self, centre: f32) -> Option<(usize, f32)> {
         let r = self.search_radius(centre);
         let c = (centre + 0.5) as usize;
         if c < r + 1 || c + r + 2 > self.top {
@@ -251,13 +285,43 @@ impl Spectrum<'_> {
                 best = i;
             }
         }
-        let v = w[best];
+        Some((best, w[best]))
+    }
+
+    /// The line at a window peak: a local maximum of at least [`LINE_RATIO`].
+    fn line_at(&self, best: usize, v: f32) -> Option<Line> {
+        let w = self.white;
         (v >= LINE_RATIO && v >= w[best - 1] && v >= w[best + 1])
             .then_some(Line { bin: best, white: v })
     }
 
-    fn strength(&self, centre: f32) -> f32 {
-        self.line(centre).map_or(0.0, |l| l.white)
+    fn line(&self, centre: f32) -> Option<Line> {
+        self.window_peak(centre).and_then(|(best, v)| self.line_at(best, v))
+    }
+
+    /// The line near `centre` ([`Self::line`]) and the level of the search window: the
+    /// natural log of its largest whitened level, the noise's level (1) at least.
+    fn line_and_level(&self, centre: f32) -> (Option<Line>, f32) {
+        match self.window_peak(centre) {
+            Some((best, v)) => (self.line_at(best, v), if v > 1.0 { libm::logf(v) } else { 0.0 }),
+            None => (None, 0.0),
+        }
+    }
+
+    /// Levels of the comb at `bin`: harmonics 1 ..= [`CHECK_HARMONICS`] in the band.
+    fn levels(&self, bin: f32) -> Levels {
+        let mut lv = Levels::default();
+        for h in 1..=CHECK_HARMONICS {
+            let c = h as f32 * bin;
+            if !self.in_band(c) {
+                break;
+            }
+            let (line, level) = self.line_and_level(c);
+            lv.level[h] = level;
+            lv.found[h] = line.is_some();
+            lv.n = h;
+        }
+        lv
     }
 
     /// Whether a comb at `bin` lies in the band for harmonic `h`.
@@ -266,42 +330,14 @@ impl Spectrum<'_> {
     }
 
     /// The blade-passing fundamental (bins) of a candidate line at `bin`, or `None` when the
-    /// comb's fundamental lies below `min_bin`.
+    /// comb's fundamental lies below `min_bin` (module doc, point 3).
     fn resolve(&self, bin: f32, min_bin: f32, max_bin: f32) -> Option<f32> {
-        let mut l = [0.0f32; CHECK_HARMONICS + 1];
-        let mut n = 0;
-        for (h, slot) in l.iter_mut().enumerate().skip(1) {
-            let c = h as f32 * bin;
-            if !self.in_band(c) {
-                break;
-            }
-            *slot = self.strength(c);
-            n = h;
+        let lv = self.levels(bin);
+        if let Some(m) = shaft_multiple(&lv, bin, max_bin) {
+            return Some(self.refined(m as f32 * bin));
         }
-        // Up: a shaft line whose multiples m carry the comb.
-        let mut best: Option<(f32, usize)> = None;
-        for m in 2..=3usize {
-            // The blade line is the rotor's strongest: a shaft line is weaker than its
-            // multiple.
-            if m as f32 * bin > max_bin || n < 2 * m || l[m] <= l[1] {
-                continue;
-            }
-            // No line in between to compare with: a multiple twice as strong decides alone.
-            let r = between_ratio(&l[..=n.min(3 * m)], m).unwrap_or(if l[m] >= 2.0 * l[1] {
-                0.0
-            } else {
-                1.0
-            });
-            if r < SHAFT_RATIO && best.is_none_or(|(b, _)| r < b) {
-                best = Some((r, m));
-            }
-        }
-        if let Some((_, m)) = best {
-            let c = m as f32 * bin;
-            return Some(self.line(c).map_or(c, |line| refine_peak(self.mags, line.bin).0));
-        }
-        // Down: a harmonic of a lower fundamental, whose lines between this comb's are as
-        // strong as this comb's own.
+        // Down: a harmonic of a lower fundamental, whose lines between this comb's are nearly
+        // as strong as this comb's own.
         for d in [2usize, 3] {
             let sub = bin / d as f32;
             // A line below the search range at least as strong as this one (by magnitude):
@@ -315,43 +351,67 @@ impl Spectrum<'_> {
             {
                 return None;
             }
-            let mut ls = [0.0f32; 3 * CHECK_HARMONICS / 2 + 1];
-            let mut ns = 0;
-            for (j, slot) in ls.iter_mut().enumerate().skip(1) {
+            let mut ls = Levels::default();
+            for j in 1..=CHECK_HARMONICS {
                 let c = j as f32 * sub;
-                if j > 3 * d || !self.in_band(c) {
+                if !self.in_band(c) || (j % d == 0 && j / d > lv.n) {
                     break;
                 }
-                *slot = if j % d == 0 { l[j / d] } else { self.strength(c) };
-                ns = j;
-            }
-            if ns >= 2 * d {
-                if let Some(r) = between_ratio(&ls[..=ns], d) {
-                    if r >= SHAFT_RATIO {
-                        return (sub >= min_bin).then_some(sub);
-                    }
+                if j % d == 0 {
+                    (ls.level[j], ls.found[j]) = (lv.level[j / d], lv.found[j / d]);
+                } else {
+                    let (line, level) = self.line_and_level(c);
+                    (ls.level[j], ls.found[j]) = (level, line.is_some());
                 }
+                ls.n = j;
+            }
+            if contrast(&ls, d).is_some_and(|c| c < OWN_HARMONIC_CONTRAST) {
+                if sub < min_bin {
+                    return None;
+                }
+                // The sub-multiple may itself be a shaft line: a candidate at a shaft comb's
+                // third line would otherwise be moved down to the shaft rate.
+                return Some(
+                    shaft_multiple(&ls, sub, max_bin).map_or(sub, |m| self.refined(m as f32 * sub)),
+                );
             }
         }
         Some(bin)
     }
 
+    /// The refined position of the line near `centre`, or `centre` when there is none.
+    fn refined(&self, centre: f32) -> f32 {
+        self.line(centre).map_or(centre, |line| refine_peak(self.mags, line.bin).0)
+    }
+
     /// The blade line of a comb at `bin`: the rotor's strongest line. When its second or
     /// third harmonic is [`BLADE_DOMINANCE`] times stronger than the line at `bin` (a shaft
-    /// line: several rotors a few per cent apart fill a shaft comb's gaps, so the
-    /// between-lines test of [`Self::resolve`] cannot tell), that multiple.
+    /// line: several rotors a few per cent apart fill a shaft comb's gaps, so the contrast test
+    /// of [`Self::resolve`] cannot tell), that multiple, unless the lines between the
+    /// multiples are stronger than they with that one line discounted ([`BLADE_VETO`]: a blade
+    /// comb with one line raised by the room).
     fn blade_line(&self, bin: f32, max_bin: f32) -> f32 {
         // Line strengths as magnitudes: the whitening floor differs between the lines' blocks.
         let s1 = self.line(bin).map_or(0.0, |l| self.mags[l.bin]);
-        let mut best = (bin, BLADE_DOMINANCE * s1);
-        for m in [2.0f32, 3.0] {
-            let c = m * bin;
+        let mut best = (bin, BLADE_DOMINANCE * s1, 1usize);
+        for m in [2usize, 3] {
+            let c = m as f32 * bin;
             if c > max_bin {
                 break;
             }
             if let Some(line) = self.line(c) {
                 if self.mags[line.bin] > best.1 {
-                    best = (refine_peak(self.mags, line.bin).0, self.mags[line.bin]);
+                    best = (refine_peak(self.mags, line.bin).0, self.mags[line.bin], m);
+                }
+            }
+        }
+        let m = best.2;
+        if m > 1 {
+            let mut lv = self.levels(bin);
+            if lv.n > m {
+                lv.level[m] = 0.5 * (lv.level[m - 1] + lv.level[m + 1]);
+                if contrast(&lv, m).is_some_and(|c| c < BLADE_VETO) {
+                    return bin;
                 }
             }
         }
@@ -443,6 +503,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
         let b1 = refine_peak(spec.mags, k).0;
         let Some(b) = spec.resolve(b1, min_bin, max_bin) else { continue };
         let b = spec.blade_line(b, max_bin);
+
         if b < min_bin || b > max_bin {
             continue;
         }
@@ -458,7 +519,11 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
         }
     }
     let groups = &mut groups[..n_groups];
-    groups.sort_unstable_by(|a, b| b.score.total_cmp(&a.score));
+    // Strongest score first; between combs of equal score (every line at the cap: clean
+    // recordings), the louder one.
+    groups.sort_unstable_by(|a, b| {
+        b.score.total_cmp(&a.score).then(b.amplitude.total_cmp(&a.amplitude))
+    });
 
     let mut out = Peaks::default();
     let mut next = History::new();
@@ -469,43 +534,51 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
     let mut passing = [Peak::default(); 4];
     let mut passing_first = [[0.0f32; 3]; 4];
     let mut n_passing = 0usize;
-    for g in groups.iter() {
-        let allowed = 2.0 * bin_hz + rate_hz_per_hz * g.hz;
-        let prior = history.age_of(g.hz, g.amplitude, allowed);
-        // Hysteresis: a comb already reported, or one in the rotor cluster of one reported in
-        // the previous analysis (another rotor pair of the same airframe), continues at half
-        // the quality that starts one.
-        let in_reported_cluster = (0..history.count)
-            .any(|i| history.age[i] >= MIN_AGE && in_cluster(history.hz[i], g.hz));
-        let min_quality = if prior >= MIN_AGE || in_reported_cluster {
-            HOLD_QUALITY * config.bpf_min_quality
-        } else {
-            config.bpf_min_quality
-        };
-        if !g.passes || g.quality < min_quality || g.score < config.peak_relative_score * best {
-            continue;
+    // Groups that continue a reported comb first, then the others, each strongest first: a
+    // comb of the analysis related to a reported one (its shaft comb, read from one noisy
+    // spectrum) does not push that one out.
+    for continuing in [true, false] {
+        for g in groups.iter() {
+            let allowed = 2.0 * bin_hz + rate_hz_per_hz * g.hz;
+            let prior = history.age_of(g.hz, g.amplitude, allowed);
+            if (prior >= MIN_AGE) != continuing {
+                continue;
+            }
+            // Hysteresis: a comb already reported, or one in the rotor cluster of one reported in
+            // the previous analysis (another rotor pair of the same airframe), continues at half
+            // the quality that starts one.
+            let in_reported_cluster = (0..history.count)
+                .any(|i| history.age[i] >= MIN_AGE && in_cluster(history.hz[i], g.hz));
+            let min_quality = if prior >= MIN_AGE || in_reported_cluster {
+                HOLD_QUALITY * config.bpf_min_quality
+            } else {
+                config.bpf_min_quality
+            };
+            if !g.passes || g.quality < min_quality || g.score < config.peak_relative_score * best {
+                continue;
+            }
+            let related = next.hz[..next.count].iter().any(|&a| {
+                let (lo, hi) = if g.hz > a { (a, g.hz) } else { (g.hz, a) };
+                let n = libm::roundf(hi / lo);
+                libm::fabsf(hi - n * lo) < tolerance * n.max(1.0)
+            });
+            if related || next.count == next.hz.len() {
+                continue;
+            }
+            let age = prior.saturating_add(1);
+            next.hz[next.count] = g.hz;
+            next.amplitude[next.count] = g.amplitude;
+            next.age[next.count] = age;
+            next.count += 1;
+            passing[n_passing] = Peak {
+                hz: g.hz,
+                amplitude: g.amplitude,
+                harmonicity: g.harmonicity,
+                quality: g.quality,
+            };
+            passing_first[n_passing] = g.first;
+            n_passing += 1;
         }
-        let related = next.hz[..next.count].iter().any(|&a| {
-            let (lo, hi) = if g.hz > a { (a, g.hz) } else { (g.hz, a) };
-            let n = libm::roundf(hi / lo);
-            libm::fabsf(hi - n * lo) < tolerance * n.max(1.0)
-        });
-        if related || next.count == next.hz.len() {
-            continue;
-        }
-        let age = prior.saturating_add(1);
-        next.hz[next.count] = g.hz;
-        next.amplitude[next.count] = g.amplitude;
-        next.age[next.count] = age;
-        next.count += 1;
-        passing[n_passing] = Peak {
-            hz: g.hz,
-            amplitude: g.amplitude,
-            harmonicity: g.harmonicity,
-            quality: g.quality,
-        };
-        passing_first[n_passing] = g.first;
-        n_passing += 1;
     }
     // Reported: the groups that held for MIN_AGE analyses, and with them the passing groups
     // of the same rotor cluster (within CLUSTER of one of them) still settling: continuity
@@ -587,36 +660,73 @@ fn in_cluster(reference_hz: f32, hz: f32) -> bool {
     libm::fabsf(reference_hz - hz) <= CLUSTER * reference_hz
 }
 
-/// The median, over the lines `l[j]` with `j > m` not a multiple of `m`, of their level relative to
-/// the stronger of the neighbouring multiples of `m` (`l[0]` unused; a missing line is 0; a
-/// ratio is capped at 2; a line whose neighbouring multiples are both missing is left out).
-/// `None` when no line has a neighbour to compare with.
-fn between_ratio(l: &[f32], m: usize) -> Option<f32> {
-    let n = l.len() - 1;
-    let mut r = [0.0f32; 24];
-    let mut k = 0;
-    // The first line is left out: below the blade fundamental, several rotors' shaft lines
-    // fall into one bin and add up, so it says nothing about the comb's pattern.
-    for j in m + 1..=n {
-        if j % m == 0 || k == r.len() {
+/// Levels of a comb's lines ([`Spectrum::levels`]).
+#[derive(Debug, Clone, Copy, Default)]
+struct Levels {
+    /// Natural log of the largest whitened level in each harmonic's search window, at least
+    /// 0 (index 0 unused).
+    level: [f32; CHECK_HARMONICS + 1],
+    /// Whether a line was found there.
+    found: [bool; CHECK_HARMONICS + 1],
+    /// Highest harmonic in the band.
+    n: usize,
+}
+
+impl Levels {
+    /// The comb's extent: its highest found line within [`EXTENT_LOG`] of its strongest found
+    /// line (0 when none is found).
+    fn extent(&self) -> usize {
+        let top =
+            (1..=self.n).filter(|&h| self.found[h]).map(|h| self.level[h]).fold(0.0, f32::max);
+        (1..=self.n)
+            .rev()
+            .find(|&h| self.found[h] && self.level[h] >= top - EXTENT_LOG)
+            .unwrap_or(0)
+    }
+}
+
+/// The multiple `m` (2 or 3, at most `max_bin / bin`) of a comb at `bin` whose lines carry it,
+/// when the lines between the multiples are weak ([`SHAFT_CONTRAST`]): `bin` is a shaft line.
+fn shaft_multiple(lv: &Levels, bin: f32, max_bin: f32) -> Option<usize> {
+    let mut best: Option<(f32, usize)> = None;
+    for m in 2..=3usize {
+        if m as f32 * bin > max_bin {
             continue;
         }
-        let below = if j >= m { l[j / m * m] } else { 0.0 };
-        let above = if (j / m + 1) * m <= n { l[(j / m + 1) * m] } else { 0.0 };
-        let reference = below.max(above);
-        // A missing reference line says nothing: several rotors a few per cent apart and a
-        // speed wandering within the window smear a comb's upper lines out of the search.
-        if reference > 0.0 {
-            r[k] = (l[j] / reference).min(2.0);
-            k += 1;
+        if let Some(c) = contrast(lv, m) {
+            if c >= SHAFT_CONTRAST && best.is_none_or(|(b, _)| c > b) {
+                best = Some((c, m));
+            }
         }
+    }
+    best.map(|(_, m)| m)
+}
+
+/// The median contrast of a comb's multiples of `m` over the lines between them: for each
+/// line `j > m` not a multiple of `m` whose neighbouring multiples lie within the comb's extent
+/// ([`Levels::extent`]), the mean level of the two multiples minus the line's own (natural
+/// log). The lowest line is left out: below the blade
+/// fundamental, several rotors' shaft lines fall into one bin and add up, so it says nothing
+/// about the comb's pattern. `None` when no triple qualifies.
+fn contrast(lv: &Levels, m: usize) -> Option<f32> {
+    let n = lv.extent();
+    let mut c = [0.0f32; CHECK_HARMONICS];
+    let mut k = 0;
+    for j in m + 1..=n {
+        let below = j / m * m;
+        let above = below + m;
+        if j % m == 0 || above > n {
+            continue;
+        }
+        c[k] = 0.5 * (lv.level[below] + lv.level[above]) - lv.level[j];
+        k += 1;
     }
     if k == 0 {
         return None;
     }
-    let r = &mut r[..k];
-    r.sort_unstable_by(f32::total_cmp);
-    Some(if k % 2 == 1 { r[k / 2] } else { 0.5 * (r[k / 2 - 1] + r[k / 2]) })
+    let c = &mut c[..k];
+    c.sort_unstable_by(f32::total_cmp);
+    Some(if k % 2 == 1 { c[k / 2] } else { 0.5 * (c[k / 2 - 1] + c[k / 2]) })
 }
 
 fn insert_strongest(cands: &mut [(usize, f32); MAX_CANDIDATES], n: &mut usize, c: (usize, f32)) {
