@@ -56,7 +56,9 @@ pub struct Peak {
     pub quality: f32,
 }
 
-/// Up to four BPF peak groups, strongest harmonic score first, or "no rotor signature".
+/// Up to four BPF peak groups, or "no rotor signature". Groups continuing one reported in the
+/// previous analysis come first, then the others; within each, strongest harmonic score first
+/// ([`crate::comb`], point 6).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Peaks {
     /// A rotor signature passed the detection test (`count` > 0); false: no rotor signature,
@@ -66,7 +68,8 @@ pub struct Peaks {
     pub sample_index: u64,
     /// Input-rate samples covered by the analysis window.
     pub span_samples: u32,
-    /// The strongest group's fundamental, Hz (0 when `count` = 0).
+    /// The first group's fundamental, Hz (0 when `count` = 0): the strongest of those
+    /// continuing a reported comb, else the strongest.
     pub bpf_hz: f32,
     /// Valid entries in `peaks`.
     pub count: u8,

@@ -664,7 +664,8 @@ pub struct Peaks {
     pub span_samples: u32,
     /// Blade-passing frequency, units of 0.01 Hz; 0 when none was found.
     pub bpf_chz: u32,
-    /// Up to [`MAX_PEAKS`] peaks, strongest first.
+    /// Up to [`MAX_PEAKS`] peaks in the detector's order (aim-dsp: groups continuing a
+    /// reported comb first, each set strongest first).
     pub peaks: heapless::Vec<Peak, MAX_PEAKS>,
     /// Rotor signature or not (appended; absent in older frames).
     pub detection: Detection,

@@ -320,7 +320,8 @@ fn a_shaft_comb_whose_first_lines_the_room_raised_is_reported_at_the_blade_line(
     let peaks = analyse(&x, 20.0, &mut rng);
     let reported: Vec<f32> = peaks[SETTLING..].iter().map(|p| p.bpf_hz).collect();
     println!("{reported:.1?}");
-    assert!(reported.len() >= 4, "{reported:.1?}");
+    // Four seconds: 12 scored analyses.
+    assert!(reported.len() >= 10, "{reported:.1?}");
     for p in &peaks[SETTLING..] {
         assert!(
             p.rotor && (p.bpf_hz - 328.0).abs() < 1.0,
