@@ -458,7 +458,7 @@ impl Spectrum<'_> {
         let harmonicity = found as f32 / expected.max(1) as f32;
         let quality = harmonicity * score / (score + QUALITY_SCALE);
         let passes = found >= MIN_LINES.min(expected.max(1)) && harmonicity >= MIN_HARMONICITY;
-        Group { hz, amplitude, harmonicity, score, quality, first, passes }
+        Group { hz, amplitude, harmonicity, score, quality, first, passes, prior: 0 }
     }
 }
 
@@ -475,6 +475,8 @@ struct Group {
     first: [f32; 3],
     /// Line count and harmonicity pass the test (quality is tested against the config).
     passes: bool,
+    /// Consecutive analyses before this one the group has passed ([`History::age_of`]).
+    prior: u8,
 }
 
 /// Finds the rotor groups of one analysis. `spec` holds magnitudes and whitened levels,
@@ -503,7 +505,6 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
         let b1 = refine_peak(spec.mags, k).0;
         let Some(b) = spec.resolve(b1, min_bin, max_bin) else { continue };
         let b = spec.blade_line(b, max_bin);
-
         if b < min_bin || b > max_bin {
             continue;
         }
@@ -519,66 +520,66 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
         }
     }
     let groups = &mut groups[..n_groups];
-    // Strongest score first; between combs of equal score (every line at the cap: clean
-    // recordings), the louder one.
+    let rate_hz_per_hz = config.bpf_max_rate_per_s * hop_s;
+    for g in groups.iter_mut() {
+        let allowed = 2.0 * bin_hz + rate_hz_per_hz * g.hz;
+        g.prior = history.age_of(g.hz, g.amplitude, allowed);
+    }
+    // Groups that continue a reported comb first, then the others, each strongest score first
+    // (between combs of equal score, every line at the cap in clean recordings, the louder):
+    // a comb of the analysis related to a reported one (its shaft comb, read from one noisy
+    // spectrum) does not push that one out.
     groups.sort_unstable_by(|a, b| {
-        b.score.total_cmp(&a.score).then(b.amplitude.total_cmp(&a.amplitude))
+        (b.prior >= MIN_AGE)
+            .cmp(&(a.prior >= MIN_AGE))
+            .then(b.score.total_cmp(&a.score))
+            .then(b.amplitude.total_cmp(&a.amplitude))
     });
 
     let mut out = Peaks::default();
     let mut next = History::new();
-    let best = groups.iter().find(|g| g.passes).map_or(0.0, |g| g.score);
+    let best = groups.iter().filter(|g| g.passes).map(|g| g.score).fold(0.0, f32::max);
     let tolerance = 1.5 * bin_hz;
-    let rate_hz_per_hz = config.bpf_max_rate_per_s * hop_s;
     // The groups entered in `next` (the same order), as they would be reported.
     let mut passing = [Peak::default(); 4];
     let mut passing_first = [[0.0f32; 3]; 4];
     let mut n_passing = 0usize;
-    // Groups that continue a reported comb first, then the others, each strongest first: a
-    // comb of the analysis related to a reported one (its shaft comb, read from one noisy
-    // spectrum) does not push that one out.
-    for continuing in [true, false] {
-        for g in groups.iter() {
-            let allowed = 2.0 * bin_hz + rate_hz_per_hz * g.hz;
-            let prior = history.age_of(g.hz, g.amplitude, allowed);
-            if (prior >= MIN_AGE) != continuing {
-                continue;
-            }
-            // Hysteresis: a comb already reported, or one in the rotor cluster of one reported in
-            // the previous analysis (another rotor pair of the same airframe), continues at half
-            // the quality that starts one.
-            let in_reported_cluster = (0..history.count)
-                .any(|i| history.age[i] >= MIN_AGE && in_cluster(history.hz[i], g.hz));
-            let min_quality = if prior >= MIN_AGE || in_reported_cluster {
-                HOLD_QUALITY * config.bpf_min_quality
-            } else {
-                config.bpf_min_quality
-            };
-            if !g.passes || g.quality < min_quality || g.score < config.peak_relative_score * best {
-                continue;
-            }
-            let related = next.hz[..next.count].iter().any(|&a| {
-                let (lo, hi) = if g.hz > a { (a, g.hz) } else { (g.hz, a) };
-                let n = libm::roundf(hi / lo);
-                libm::fabsf(hi - n * lo) < tolerance * n.max(1.0)
-            });
-            if related || next.count == next.hz.len() {
-                continue;
-            }
-            let age = prior.saturating_add(1);
-            next.hz[next.count] = g.hz;
-            next.amplitude[next.count] = g.amplitude;
-            next.age[next.count] = age;
-            next.count += 1;
-            passing[n_passing] = Peak {
-                hz: g.hz,
-                amplitude: g.amplitude,
-                harmonicity: g.harmonicity,
-                quality: g.quality,
-            };
-            passing_first[n_passing] = g.first;
-            n_passing += 1;
+    for g in groups.iter() {
+        let prior = g.prior;
+        // Hysteresis: a comb already reported, or one in the rotor cluster of one reported in
+        // the previous analysis (another rotor pair of the same airframe), continues at half
+        // the quality that starts one.
+        let in_reported_cluster = (0..history.count)
+            .any(|i| history.age[i] >= MIN_AGE && in_cluster(history.hz[i], g.hz));
+        let min_quality = if prior >= MIN_AGE || in_reported_cluster {
+            HOLD_QUALITY * config.bpf_min_quality
+        } else {
+            config.bpf_min_quality
+        };
+        if !g.passes || g.quality < min_quality || g.score < config.peak_relative_score * best {
+            continue;
         }
+        let related = next.hz[..next.count].iter().any(|&a| {
+            let (lo, hi) = if g.hz > a { (a, g.hz) } else { (g.hz, a) };
+            let n = libm::roundf(hi / lo);
+            libm::fabsf(hi - n * lo) < tolerance * n.max(1.0)
+        });
+        if related || next.count == next.hz.len() {
+            continue;
+        }
+        let age = prior.saturating_add(1);
+        next.hz[next.count] = g.hz;
+        next.amplitude[next.count] = g.amplitude;
+        next.age[next.count] = age;
+        next.count += 1;
+        passing[n_passing] = Peak {
+            hz: g.hz,
+            amplitude: g.amplitude,
+            harmonicity: g.harmonicity,
+            quality: g.quality,
+        };
+        passing_first[n_passing] = g.first;
+        n_passing += 1;
     }
     // Reported: the groups that held for MIN_AGE analyses, and with them the passing groups
     // of the same rotor cluster (within CLUSTER of one of them) still settling: continuity
