@@ -58,17 +58,9 @@
 //! 7. **Shaft combs.** Of the groups to report, one whose double or triple lies in the rotor
 //!    cluster ([`CLUSTER`]) of another reported group is a rotor's shaft comb and is left out
 //!    when that group's first line, or its own line at the multiple, is at least
-//!    [`SHAFT_DOMINANCE`] times as strong as its first line (the other group's first line
-//!    must be [`OTHER_BLADE_DOMINANCE`] times as strong); with no such group in this
+//!    [`SHAFT_DOMINANCE`] times as strong as its first line; with no such group in this
 //!    analysis but one reported in the previous, it is reported at the multiple when its own
-//!    line there is. A group whose first line was not found is left as it is.
-//!    **Over-harmonic combs**, the other way round: a group (at the frequency it would be
-//!    reported at) whose half or third lies in the rotor cluster of another reported group
-//!    that is not a shaft comb and whose own first line is stronger than its line at that
-//!    multiple, is one rotor's comb at twice or three times its BPF (its odd lines lost in
-//!    the room, its even lines passing as a comb of their own, beside the other rotors'
-//!    blade combs) and is left out. The exact harmonic of a reported group is already
-//!    dropped as related (point 6); this catches the other rotors' multiples. When no group
+//!    line there is. A group whose first line was not found is left as it is. When no group
 //!    is reported, the `Peaks` output says "no rotor signature" and carries no BPF.
 
 use crate::bpf::refine_peak;
@@ -127,13 +119,6 @@ pub const BLADE_DOMINANCE: f32 = 2.5;
 /// seeds 1–8 (BENCHMARKS.md issue 19, session 16); 1.0 had the fewest octave errors without
 /// losing frames.
 pub const SHAFT_DOMINANCE: f32 = 1.0;
-/// The same test by the other group's first line (a rotor's blade line may sit in the room's
-/// interference notch while another rotor's does not) asks this much more: 1.5 times the
-/// candidate's first line (3.5 dB), so that two rotors' lines of nearly equal level do not
-/// decide it (a rotor's comb at twice its BPF, its odd lines lost, beside the other rotors'
-/// blade combs: [`detect`]'s over-harmonic test then drops that one). Measured at 1.0, 1.5,
-/// 2.0, 3.0 and off on the BPF bench's tuning seeds 1–16 (BENCHMARKS.md issue 19, session 42).
-pub const OTHER_BLADE_DOMINANCE: f32 = 1.3;
 /// Consecutive analyses a group must pass before it is reported (3: the comb held steady for
 /// 1.02 s; a sung note or a vowel rarely does, a rotor always).
 pub const MIN_AGE: u8 = 3;
@@ -620,7 +605,7 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
                 && [2usize, 3].iter().any(|&m| {
                     in_cluster(a, m as f32 * passing[i].hz)
                         && own[0] > 0.0
-                        && (passing_first[j][0] >= OTHER_BLADE_DOMINANCE * own[0]
+                        && (passing_first[j][0] >= SHAFT_DOMINANCE * own[0]
                             || own[m - 1] >= SHAFT_DOMINANCE * own[0])
                 })
         })
@@ -639,28 +624,11 @@ pub fn detect(spec: &Spectrum, config: &Config, hop_s: f32, history: &mut Histor
                 })
         })
     };
-    // A comb at twice or three times the BPF: its half or third lies in the rotor cluster of
-    // another reported group that is not a shaft comb (one rotor's blade comb failed and its
-    // even lines passed as a comb of their own, beside the other rotors' blade combs).
-    let over = |i: usize, hz: f32| {
-        (0..n_passing).any(|j| {
-            j != i
-                && eligible(j)
-                && !shaft(j)
-                && [2usize, 3].iter().any(|&m| {
-                    in_cluster(passing[j].hz, hz / m as f32)
-                        && passing_first[j][0] > passing_first[j][m - 1]
-                })
-        })
-    };
     for (i, &group) in passing[..n_passing].iter().enumerate() {
         if eligible(i) && !shaft(i) && (out.count as usize) < out.peaks.len() {
             let mut peak = group;
             if let Some(m) = promoted(i) {
                 peak.hz *= m as f32;
-            }
-            if over(i, peak.hz) {
-                continue;
             }
             out.peaks[out.count as usize] = peak;
             out.count += 1;

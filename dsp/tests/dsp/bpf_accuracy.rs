@@ -330,39 +330,3 @@ fn a_shaft_comb_whose_first_lines_the_room_raised_is_reported_at_the_blade_line(
         );
     }
 }
-
-#[test]
-fn a_rotor_whose_odd_lines_the_room_removed_is_not_reported_at_twice_its_bpf() {
-    // Four rotors of one airframe: three blade combs at 395, 403 and 411 Hz, and a fourth
-    // rotor at 420 Hz of which only the even harmonics reach the array (840, 1680, 2520,
-    // 3360 Hz): they form a comb of their own at 840 Hz, which is not related to any other
-    // group by an integer ratio. Its half lies in the cluster of the three: it is that
-    // rotor's comb at twice its BPF, not a rotor at 840 Hz.
-    let mut rng = Rng::new(0x840);
-    let mut x = vec![0.0; 2 * N];
-    for f0 in [395.0, 403.0, 411.0] {
-        add_group(&mut x, f0, 0.05, &mut rng);
-    }
-    for k in 1..=4usize {
-        let a = 0.05 / ((2 * k) as f64).sqrt();
-        let phase = 2.0 * PI * rng.uniform();
-        for (t, v) in x.iter_mut().enumerate() {
-            *v += a * (2.0 * PI * 840.0 * k as f64 * t as f64 / FS + phase).sin();
-        }
-    }
-    let peaks = analyse(&x, 20.0, &mut rng);
-    let groups: Vec<Vec<f32>> = peaks[SETTLING..]
-        .iter()
-        .map(|p| p.peaks[..p.count as usize].iter().map(|g| g.hz).collect())
-        .collect();
-    println!("{groups:.1?}");
-    assert!(groups.len() >= 10, "{groups:.1?}");
-    for (p, g) in peaks[SETTLING..].iter().zip(&groups) {
-        assert!(
-            p.rotor && (380.0..430.0).contains(&p.bpf_hz),
-            "BPF {:.1} Hz: {groups:.1?}",
-            p.bpf_hz
-        );
-        assert!(g.iter().all(|&f| f < 500.0), "a group at twice a rotor's BPF: {groups:.1?}");
-    }
-}
