@@ -211,7 +211,7 @@ impl FrontEnd {
     /// once per run of frames.
     ///
     /// One contiguous pass ORs every word's ones'-complement magnitude `x ^ (x >> 31)`: below
-    /// [`CLIP_SCREEN`] no word was clipped (2 instructions per word, where counting takes 4).
+    /// [`CLIP_LEVEL`] − 1 no word was clipped (2 instructions per word, where counting takes 4).
     /// Only otherwise (a word near full scale, or a loud run whose magnitudes happen to OR up to
     /// it) are the words counted one by one.
     pub fn count_clipped(&mut self, frames: &[i32], slots: usize, mics: usize) {
