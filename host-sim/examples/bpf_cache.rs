@@ -4,7 +4,7 @@
 //! per clip `NAME.f32` (mono pressure at the array, f32 LE) and, for drone clips, `NAME.truth`
 //! (per analysis index: the rotors' true BPFs at the window's centre). `CLEAN=1`: the drone
 //! clips only, with no hall and no background (`d_AIRFRAME_c_0_SEED`, the source at 3 m).
-use std::io::Write;
+use std::fmt::Write as _;
 
 use host_sim::bpf_bench::{
     airframes, drone_sound, flight, in_hall, true_bpf, BACKGROUNDS_DB, FS, HALLS,
@@ -33,17 +33,19 @@ fn main() -> anyhow::Result<()> {
             let distance = if seed % 2 == 1 { 3.0 } else { 5.0 };
             let log = flight(&p, dur, seed)?;
             let source = drone_sound(&p, &log, dur, seed);
+            // The truth file, the same for every hall and background of this flight.
+            let mut truth = String::new();
+            let n = ((dur * 8000.0) as usize - 4096) / 2048 + 1;
+            for j in 0..n {
+                let t = j as f64 * 0.256 + 0.256;
+                let tr: Vec<String> = (0..p.rotor_count())
+                    .map(|r| format!("{:.4}", true_bpf(&log, r, f64::from(p.blades), t)))
+                    .collect();
+                writeln!(truth, "{}", tr.join(","))?;
+            }
             let clip = |name: &str, heard: &[f64]| -> anyhow::Result<()> {
                 write(&format!("{name}.f32"), heard)?;
-                let mut f = std::fs::File::create(out.join(format!("{name}.truth")))?;
-                let n = ((dur * 8000.0) as usize - 4096) / 2048 + 1;
-                for j in 0..n {
-                    let t = j as f64 * 0.256 + 0.256;
-                    let tr: Vec<String> = (0..p.rotor_count())
-                        .map(|r| format!("{:.4}", true_bpf(&log, r, f64::from(p.blades), t)))
-                        .collect();
-                    writeln!(f, "{}", tr.join(","))?;
-                }
+                std::fs::write(out.join(format!("{name}.truth")), &truth)?;
                 Ok(())
             };
             if clean {

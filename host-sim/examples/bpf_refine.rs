@@ -19,6 +19,7 @@ use std::collections::BTreeMap;
 
 use aim_dsp::bpf::{Decimator, SpectralPath, ANALYSIS_LEN};
 use aim_dsp::{Config, Geometry};
+use host_sim::bpf_bench::{classify, Verdict};
 use rustfft::{num_complex::Complex, FftPlanner};
 
 fn envf(k: &str, d: f64) -> f64 {
@@ -300,12 +301,10 @@ fn main() -> anyhow::Result<()> {
             let Some(&f) = g.first() else { continue };
             e[1] += 1;
             let tr = &truth[j.min(truth.len() - 1)];
-            if tr.iter().any(|&b| (f - b).abs() <= 2.0) {
-                e[2] += 1;
-            } else if tr.iter().any(|&b| {
-                [0.5, 1.0 / 3.0, 2.0, 3.0].iter().any(|&k| (f - k * b).abs() <= 0.02 * k * b)
-            }) {
-                e[3] += 1;
+            match classify(f, tr) {
+                Verdict::Correct => e[2] += 1,
+                Verdict::Octave => e[3] += 1,
+                Verdict::Wrong => {}
             }
         }
     }

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use aim_dsp::bpf::{SpectralPath, ANALYSIS_LEN};
 use aim_dsp::{Config, Geometry};
+use host_sim::bpf_bench::{classify, Verdict};
 
 /// Per clip or class: frames, frames with a BPF, within 2 Hz, octave errors, octave errors
 /// below every rotor (a shaft comb reported).
@@ -65,15 +66,15 @@ fn main() -> anyhow::Result<()> {
                 if std::env::var("F").is_ok_and(|f| stem.contains(&f)) {
                     println!("{stem} {j} {g:.1?} truth {tr:.1?}");
                 }
-                if tr.iter().any(|&b| (f - b).abs() <= 2.0) {
-                    case[2] += 1;
-                } else if tr.iter().any(|&b| {
-                    [0.5, 1.0 / 3.0, 2.0, 3.0].iter().any(|&k| (f - k * b).abs() <= 0.02 * k * b)
-                }) {
-                    case[3] += 1;
-                    if tr.iter().all(|&b| f < b) {
-                        case[4] += 1;
+                match classify(f, tr) {
+                    Verdict::Correct => case[2] += 1,
+                    Verdict::Octave => {
+                        case[3] += 1;
+                        if tr.iter().all(|&b| f < b) {
+                            case[4] += 1;
+                        }
                     }
+                    Verdict::Wrong => {}
                 }
             }
         } else {

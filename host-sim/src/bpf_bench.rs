@@ -360,16 +360,39 @@ pub fn drone_case(
         if std::env::var_os("AIM_BPF_DEBUG").is_some() {
             eprintln!("{} t {t_mid:.2} f {f:.1} truths {truths:.1?}", profile.name);
         }
-        if truths.iter().any(|&b| (f - b).abs() <= 2.0) {
-            score.correct += 1;
-        } else if truths
-            .iter()
-            .any(|&b| [0.5, 1.0 / 3.0, 2.0, 3.0].iter().any(|&k| (f - k * b).abs() <= 0.02 * k * b))
-        {
-            score.octave += 1;
+        match classify(f, &truths) {
+            Verdict::Correct => score.correct += 1,
+            Verdict::Octave => score.octave += 1,
+            Verdict::Wrong => {}
         }
     }
     Ok(score)
+}
+
+/// How a frame's BPF compares with the rotors' true BPFs (module doc: the scoring).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Within 2 Hz of some rotor's BPF.
+    Correct,
+    /// Not correct, but within 2 % of ½, ⅓, 2 or 3 times some rotor's.
+    Octave,
+    /// Neither.
+    Wrong,
+}
+
+/// Scores a frame's BPF `bpf_hz` against the rotors' true BPFs `truths_hz` (both Hz).
+pub fn classify(bpf_hz: f64, truths_hz: &[f64]) -> Verdict {
+    let f = bpf_hz;
+    if truths_hz.iter().any(|&b| (f - b).abs() <= 2.0) {
+        Verdict::Correct
+    } else if truths_hz
+        .iter()
+        .any(|&b| [0.5, 1.0 / 3.0, 2.0, 3.0].iter().any(|&k| (f - k * b).abs() <= 0.02 * k * b))
+    {
+        Verdict::Octave
+    } else {
+        Verdict::Wrong
+    }
 }
 
 /// Scores one non-drone clip: the source at `level_db` at the array (direct), in `hall` at
