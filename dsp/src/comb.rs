@@ -46,8 +46,8 @@
 //! 6. **Continuity.** A passing group is reported only once it has passed in [`MIN_AGE`]
 //!    consecutive analyses, each within `2 bins + Config::bpf_max_rate_per_s · hop · f` of the
 //!    previous one (rotor speeds change at most that fast) and with its level (root-sum-square amplitude of its lines)
-//!    within [`STEADY_RATIO`] of the previous one's while it is not yet reported: a source must hold a comb for three
-//!    analyses (1.02 s) before it is called a rotor; notes and vowels rarely do. A comb once
+//!    within [`STEADY_RATIO`] of the previous one's while it is not yet reported: a source must hold a comb for four
+//!    analyses (1.28 s) before it is called a rotor; notes and vowels rarely do. A comb once
 //!    reported continues at [`HOLD_QUALITY`] of the starting quality (hysteresis), and a
 //!    reported comb missed by one analysis keeps its place in the history for the next.
 //!    Groups are taken strongest score first (between equal scores, the louder: clean
@@ -119,9 +119,14 @@ pub const BLADE_DOMINANCE: f32 = 2.5;
 /// seeds 1–8 (BENCHMARKS.md issue 19, session 16); 1.0 had the fewest octave errors without
 /// losing frames.
 pub const SHAFT_DOMINANCE: f32 = 1.0;
-/// Consecutive analyses a group must pass before it is reported (3: the comb held steady for
-/// 1.02 s; a sung note or a vowel rarely does, a rotor always).
-pub const MIN_AGE: u8 = 3;
+/// Consecutive analyses a group must pass before it is reported (4: the comb held steady for
+/// 1.28 s; a sung note or a vowel rarely does, a rotor always). Was 3 (1.02 s); 4 with the
+/// lower start thresholds of `Config::peak_floor_ratio` 4 and `Config::bpf_min_quality` 0.2
+/// keeps the weak combs of far or masked rotors that 3 with the stricter thresholds lost, and
+/// lets through a fifth of the held notes (BENCHMARKS.md issue 19, session 43: tuning seeds 1–16
+/// within 2 Hz 82.9 → 83.4 %, octave 1.12 → 0.97 %, non-drone frames 1.40 → 0.53 %). The price
+/// is latency: a comb is reported one analysis (0.256 s) later after it starts or returns.
+pub const MIN_AGE: u8 = 4;
 /// A group continues one of the previous analysis only if its level (root-sum-square amplitude of its lines) is within
 /// this factor of that one's either way (±6 dB per 0.256 s: a rotor's level is steady, a note
 /// dying away in a hall falls 10 dB per hop at RT60 1.6 s, a vowel starts and stops).

@@ -40,14 +40,16 @@ pub struct Config {
     /// Harmonics (including the fundamental) used per BPF peak group. Default 8.
     pub harmonics: usize,
     /// A BPF candidate line must stand this many times above the local noise floor (the
-    /// whitened spectrum, [`crate::comb`]). Default 5.
+    /// whitened spectrum, [`crate::comb`]). Default 4 (was 5; chosen with
+    /// [`crate::comb::MIN_AGE`] 4, BENCHMARKS.md issue 19, session 43).
     pub peak_floor_ratio: f32,
     /// A further peak group must reach this fraction of the strongest group's harmonic
     /// score. Default 0.1.
     pub peak_relative_score: f32,
     /// Lowest detection quality of a reported rotor group, 0–1 ([`crate::Peak::quality`]).
-    /// Default 0.3 (BENCHMARKS.md "Session 9": chosen with [`crate::comb::LINE_RATIO`] 2.5 on
-    /// the BPF bench's tuning seeds for non-drone frames with a BPF ≤ 2 %).
+    /// Default 0.2 (was 0.3, chosen in session 9 with [`crate::comb::LINE_RATIO`] 2.5; 0.2 with
+    /// [`crate::comb::MIN_AGE`] 4 on the BPF bench's tuning seeds 1–16, BENCHMARKS.md issue 19,
+    /// session 43: the four-analysis start holds the non-drone frames with a BPF under 1 %).
     pub bpf_min_quality: f32,
     /// Fastest relative change of a rotor's BPF between analyses that still continues a group,
     /// per second. Default 0.1 (10 %/s: 2.6 % per 0.256 s hop, under a semitone's 6 %: a
@@ -91,9 +93,9 @@ impl Config {
             bpf_min_hz: 140.0,
             bpf_max_hz: 1000.0,
             harmonics: 8,
-            peak_floor_ratio: 5.0,
+            peak_floor_ratio: 4.0,
             peak_relative_score: 0.1,
-            bpf_min_quality: 0.3,
+            bpf_min_quality: 0.2,
             bpf_max_rate_per_s: 0.1,
             health_interval_blocks: 48,
             mfcc_interval: 1,

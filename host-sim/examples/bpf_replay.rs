@@ -1,6 +1,9 @@
 //! Diagnosis of the BPF bench (not part of the product): the detector alone (`SpectralPath`
 //! on the mono pressure, no pipeline, no wire) on the clips `bpf_cache` wrote, scored as
 //! `host-sim bpf-bench` scores. `cargo run --release -p host-sim --example bpf_replay -- DIR`.
+//! Environment: `Q`, `P` override `Config::bpf_min_quality` and `Config::peak_floor_ratio`;
+//! `V=1` prints each clip, `F=NAME` each frame of the clips whose name holds NAME; `SKIP=N` [2]
+//! scores frames from analysis N on (to compare detectors whose combs start at different ages).
 use std::collections::BTreeMap;
 
 use aim_dsp::bpf::{SpectralPath, ANALYSIS_LEN};
@@ -30,6 +33,7 @@ fn frames(x: &[f32], config: &Config) -> Vec<Vec<f32>> {
 fn main() -> anyhow::Result<()> {
     let dir = std::path::PathBuf::from(std::env::args().nth(1).expect("DIR"));
     let verbose = std::env::var_os("V").is_some();
+    let skip: usize = std::env::var("SKIP").ok().and_then(|v| v.parse().ok()).unwrap_or(2);
     let mut config = Config::new(Geometry::respeaker_6mic(), 16_000);
     if let Ok(v) = std::env::var("Q") {
         config.bpf_min_quality = v.parse()?;
@@ -57,7 +61,7 @@ fn main() -> anyhow::Result<()> {
             let truth = std::fs::read_to_string(dir.join(format!("{stem}.truth")))?;
             let truth: Vec<Vec<f64>> =
                 truth.lines().map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
-            for (j, g) in fr.iter().enumerate().skip(2) {
+            for (j, g) in fr.iter().enumerate().skip(skip) {
                 case[0] += 1;
                 let Some(&f) = g.first() else { continue };
                 let f = f as f64;
@@ -78,7 +82,7 @@ fn main() -> anyhow::Result<()> {
                 }
             }
         } else {
-            for (j, g) in fr.iter().enumerate().skip(2) {
+            for (j, g) in fr.iter().enumerate().skip(skip) {
                 if !g.is_empty() && std::env::var("F").is_ok_and(|f| stem.contains(&f)) {
                     println!("{stem} {j} {g:.1?}");
                 }

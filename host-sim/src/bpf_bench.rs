@@ -132,7 +132,7 @@ pub const TUNING_SEEDS: [u64; 2] = [1, 2];
 pub const EVALUATION_SEEDS: [u64; 4] = [301, 302, 303, 304];
 
 /// Frames at the start of a clip that are not scored: the detector reports a comb only after
-/// it has passed in `aim_dsp::comb::MIN_AGE` consecutive analyses (1.02 s of sound).
+/// it has passed in `aim_dsp::comb::MIN_AGE` consecutive analyses (1.28 s of sound).
 pub const SETTLING_FRAMES: usize = aim_dsp::comb::MIN_AGE as usize - 1;
 
 /// A hall: reverberation time and volume.

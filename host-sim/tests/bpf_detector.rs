@@ -17,7 +17,8 @@ fn machinery_noise_and_hum_give_no_bpf() {
         Negative::MainsHum,
     ] {
         let s = negative_case(kind, HALLS[0], 65.0, 55.0, 6.0, 1).unwrap();
-        assert!(s.frames >= 20, "{}: {} frames", kind.name(), s.frames);
+        // 22 analyses of 6 s, less the settling ones (`SETTLING_FRAMES`).
+        assert!(s.frames >= 19, "{}: {} frames", kind.name(), s.frames);
         total += s;
     }
     let rate = total.with_bpf as f64 / total.frames as f64;
@@ -43,10 +44,11 @@ fn a_two_blade_quad_in_a_hall_is_heard_at_its_bpf() {
 
 /// Weak lines: a three-blade quad 5 m away in the 1.6 s hall over a 70 dB background, where
 /// its upper lines stand 2.5–3× over the floor (issue 19's misses). In the diffuse hall
-/// (session 16) this detector finds its BPF within 2 Hz in 20 of the 28 scored frames of
-/// this 8 s clip; with a line search of ±0.2 % it found 19, with also the line ratio at 3.0
+/// (session 16) the detector of then found its BPF within 2 Hz in 20 of the 28 scored frames
+/// of this 8 s clip; with a line search of ±0.2 % it found 19, with also the line ratio at 3.0
 /// and the quality threshold at 0.35 (before session 9) 14 (`bpf_cache tune 8` +
-/// `bpf_replay`, BENCHMARKS.md issue 19, session 16). Oracle: the rotors' true BPFs from the
+/// `bpf_replay`, BENCHMARKS.md issue 19, session 16). Session 43's four-analysis start with
+/// lower thresholds: 24 of 27. Oracle: the rotors' true BPFs from the
 /// flight log.
 #[test]
 fn a_quad_over_a_loud_background_in_a_reverberant_hall_is_heard_at_its_bpf() {
