@@ -123,9 +123,10 @@ pub const SHAFT_DOMINANCE: f32 = 1.0;
 /// 1.28 s; a sung note or a vowel rarely does, a rotor always). Was 3 (1.02 s); 4 with the
 /// lower start thresholds of `Config::peak_floor_ratio` 4 and `Config::bpf_min_quality` 0.2
 /// keeps the weak combs of far or masked rotors that 3 with the stricter thresholds lost, and
-/// lets through a fifth of the held notes (BENCHMARKS.md issue 19, session 43: tuning seeds 1–16
-/// within 2 Hz 82.9 → 83.4 %, octave 1.12 → 0.97 %, non-drone frames 1.40 → 0.53 %). The price
-/// is latency: a comb is reported one analysis (0.256 s) later after it starts or returns.
+/// lets through far fewer held notes (BENCHMARKS.md issue 19, session 43; fresh seeds
+/// 1101–1108: within 2 Hz 82.3 → 82.9 %, octave 1.16 → 1.03 %, non-drone frames 1.93 → 0.80 %,
+/// the music-like source 16.0 → 2.5 %). The price is latency: a comb is reported one analysis
+/// (0.256 s) later after it starts or returns.
 pub const MIN_AGE: u8 = 4;
 /// A group continues one of the previous analysis only if its level (root-sum-square amplitude of its lines) is within
 /// this factor of that one's either way (±6 dB per 0.256 s: a rotor's level is steady, a note

@@ -49,7 +49,8 @@ pub struct Config {
     /// Lowest detection quality of a reported rotor group, 0–1 ([`crate::Peak::quality`]).
     /// Default 0.2 (was 0.3, chosen in session 9 with [`crate::comb::LINE_RATIO`] 2.5; 0.2 with
     /// [`crate::comb::MIN_AGE`] 4 on the BPF bench's tuning seeds 1–16, BENCHMARKS.md issue 19,
-    /// session 43: the four-analysis start holds the non-drone frames with a BPF under 1 %).
+    /// session 43: with the four-analysis start, non-drone frames with a BPF 0.53 % there, 0.80 %
+    /// on fresh seeds 1101–1108, 1.18 % on 301–304).
     pub bpf_min_quality: f32,
     /// Fastest relative change of a rotor's BPF between analyses that still continues a group,
     /// per second. Default 0.1 (10 %/s: 2.6 % per 0.256 s hop, under a semitone's 6 %: a
