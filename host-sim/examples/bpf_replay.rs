@@ -2,8 +2,9 @@
 //! on the mono pressure, no pipeline, no wire) on the clips `bpf_cache` wrote, scored as
 //! `host-sim bpf-bench` scores. `cargo run --release -p host-sim --example bpf_replay -- DIR`.
 //! Environment: `Q`, `P` override `Config::bpf_min_quality` and `Config::peak_floor_ratio`;
-//! `V=1` prints each clip, `F=NAME` each frame of the clips whose name holds NAME; `SKIP=N` [the bench's
-//! `SETTLING_FRAMES`, 3] scores frames from analysis N on (to compare detectors whose combs start at different ages).
+//! `V=1` prints each clip, `F=NAME` each frame of the clips whose name holds NAME; `SKIP=N`
+//! [the bench's `SETTLING_FRAMES`, 3] scores frames from analysis N on (to compare detectors
+//! whose combs start at different ages).
 use std::collections::BTreeMap;
 
 use aim_dsp::bpf::{SpectralPath, ANALYSIS_LEN};
@@ -33,10 +34,10 @@ fn frames(x: &[f32], config: &Config) -> Vec<Vec<f32>> {
 fn main() -> anyhow::Result<()> {
     let dir = std::path::PathBuf::from(std::env::args().nth(1).expect("DIR"));
     let verbose = std::env::var_os("V").is_some();
-    let skip: usize = std::env::var("SKIP")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(host_sim::bpf_bench::SETTLING_FRAMES);
+    let skip: usize = match std::env::var("SKIP") {
+        Ok(v) => v.parse()?,
+        Err(_) => host_sim::bpf_bench::SETTLING_FRAMES,
+    };
     let mut config = Config::new(Geometry::respeaker_6mic(), 16_000);
     if let Ok(v) = std::env::var("Q") {
         config.bpf_min_quality = v.parse()?;
